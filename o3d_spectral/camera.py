@@ -26,6 +26,7 @@ __all__ = [
     "DepthNoise",
     "RenderedView",
     "Scan",
+    "hit_labels",
     "look_at",
     "render",
     "scan_from_view",
@@ -251,6 +252,50 @@ def _camera_rays(intrinsics: CameraIntrinsics) -> np.ndarray:
     )
 
 
+def _check_scene(
+    meshes: Sequence[o3d.geometry.TriangleMesh],
+    labels: Sequence[int] | None,
+    world_from_camera: np.ndarray,
+) -> tuple[list[int], np.ndarray]:
+    labels = list(range(len(meshes))) if labels is None else [int(x) for x in labels]
+    if len(labels) != len(meshes):
+        raise ValueError(f"labels has {len(labels)} entries for {len(meshes)} meshes")
+    if min(labels, default=0) < -1:
+        raise ValueError(f"labels must be >= -1, got {min(labels)}")
+    world_from_camera = np.asarray(world_from_camera, dtype=float)
+    if world_from_camera.shape != (4, 4):
+        raise ValueError(f"world_from_camera must be 4x4, got shape {world_from_camera.shape}")
+    return labels, world_from_camera
+
+
+def _cast(
+    meshes: Sequence[o3d.geometry.TriangleMesh],
+    labels: list[int],
+    world_from_camera: np.ndarray,
+    directions: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cast camera-frame ``directions`` (..., 3), unit z, from the camera centre.
+
+    Returns depth (...) with ``inf`` for misses, labels (...) with -2 for misses, and
+    world-frame triangle normals (..., 3) as Open3D reports them.
+    """
+    scene = o3d.t.geometry.RaycastingScene()
+    gids = [scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(m)) for m in meshes]
+    label_of_gid = np.full(max(gids, default=0) + 1, -2, dtype=np.int64)
+    label_of_gid[gids] = labels
+    rotation, origin = world_from_camera[:3, :3], world_from_camera[:3, 3]
+    directions_world = directions @ rotation.T
+    rays = np.concatenate(
+        [np.broadcast_to(origin, directions_world.shape), directions_world], axis=-1
+    ).astype(np.float32)
+    hit = scene.cast_rays(o3d.core.Tensor(rays))
+    depth = hit["t_hit"].numpy().astype(float)
+    valid = np.isfinite(depth)
+    ids = np.full(depth.shape, -2, dtype=np.int64)
+    ids[valid] = label_of_gid[hit["geometry_ids"].numpy()[valid].astype(np.int64)]
+    return depth, ids, hit["primitive_normals"].numpy().astype(float)
+
+
 def render(
     meshes: Sequence[o3d.geometry.TriangleMesh],
     intrinsics: CameraIntrinsics,
@@ -277,37 +322,14 @@ def render(
     RenderedView
         Exact (noise-free) depth, normals and labels per pixel.
     """
-    labels = list(range(len(meshes))) if labels is None else [int(x) for x in labels]
-    if len(labels) != len(meshes):
-        raise ValueError(f"labels has {len(labels)} entries for {len(meshes)} meshes")
-    if min(labels, default=0) < -1:
-        raise ValueError(f"labels must be >= -1, got {min(labels)}")
-    world_from_camera = np.asarray(world_from_camera, dtype=float)
-    if world_from_camera.shape != (4, 4):
-        raise ValueError(f"world_from_camera must be 4x4, got shape {world_from_camera.shape}")
-
-    scene = o3d.t.geometry.RaycastingScene()
-    gids = [scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(m)) for m in meshes]
-    label_of_gid = np.full(max(gids, default=0) + 1, -2, dtype=np.int64)
-    label_of_gid[gids] = labels
-
-    rotation, origin = world_from_camera[:3, :3], world_from_camera[:3, 3]
-    directions_cam = _camera_rays(intrinsics)
-    directions_world = directions_cam @ rotation.T
-    rays = np.concatenate(
-        [np.broadcast_to(origin, directions_world.shape), directions_world], axis=-1
-    ).astype(np.float32)
-    hit = scene.cast_rays(o3d.core.Tensor(rays))
-
-    depth = hit["t_hit"].numpy().astype(float)
+    labels, world_from_camera = _check_scene(meshes, labels, world_from_camera)
+    directions = _camera_rays(intrinsics)
+    depth, ids, normals = _cast(meshes, labels, world_from_camera, directions)
     valid = np.isfinite(depth)
-    ids = np.full(depth.shape, -2, dtype=np.int64)
-    ids[valid] = label_of_gid[hit["geometry_ids"].numpy()[valid].astype(np.int64)]
-
     # Triangle normals into the camera frame, flipped to face the camera.
-    normals = hit["primitive_normals"].numpy().astype(float) @ rotation
+    normals = normals @ world_from_camera[:3, :3]
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), _EPS)
-    ray_unit = directions_cam / np.linalg.norm(directions_cam, axis=-1, keepdims=True)
+    ray_unit = directions / np.linalg.norm(directions, axis=-1, keepdims=True)
     cos = np.einsum("hwk,hwk->hw", normals, ray_unit)
     normals = np.where((cos > 0)[..., None], -normals, normals)
     normals[~valid] = 0.0
@@ -318,6 +340,43 @@ def render(
         cos_incidence=np.where(valid, np.abs(cos), 0.0),
         intrinsics=intrinsics,
     )
+
+
+def hit_labels(
+    meshes: Sequence[o3d.geometry.TriangleMesh],
+    intrinsics: CameraIntrinsics,
+    world_from_camera: np.ndarray,
+    *,
+    pixels: np.ndarray,
+    labels: Sequence[int] | None = None,
+) -> np.ndarray:
+    """Label of the first surface hit at selected pixels only (cheaper than :func:`render`).
+
+    Parameters
+    ----------
+    meshes, intrinsics, world_from_camera, labels
+        As for :func:`render`.
+    pixels : ndarray, shape (N, 2), int
+        ``(row, column)`` of the pixels to cast.
+
+    Returns
+    -------
+    ndarray, shape (N,), int64
+        Mesh label per pixel, -2 where nothing is hit.
+    """
+    labels, world_from_camera = _check_scene(meshes, labels, world_from_camera)
+    pixels = np.asarray(pixels)
+    if pixels.ndim != 2 or pixels.shape[1] != 2:
+        raise ValueError(f"pixels must have shape (N, 2), got {pixels.shape}")
+    directions = np.stack(
+        [
+            (pixels[:, 1] - intrinsics.cx) / intrinsics.fx,
+            (pixels[:, 0] - intrinsics.cy) / intrinsics.fy,
+            np.ones(len(pixels)),
+        ],
+        axis=1,
+    )
+    return _cast(meshes, labels, world_from_camera, directions)[1]
 
 
 def scan_from_view(
