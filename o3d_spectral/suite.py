@@ -1,0 +1,299 @@
+"""Fixed, seeded scene suites on disk: generation, loading and pictures.
+
+A suite is a folder with one ``manifest.json`` and two binary PLY files per instance
+(``NNNN_source.ply``, ``NNNN_target.ply``); the format is described in ``docs/suites.md``.
+Instance ``i`` of a suite with seed ``s`` draws all its randomness from
+``numpy.random.SeedSequence(s, spawn_key=(i,))``, so a suite is the same byte for byte
+whatever the number of worker processes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+
+from o3d_spectral.camera import CameraIntrinsics, DepthNoise
+from o3d_spectral.data import model_names
+from o3d_spectral.scenes import CONDITIONS, Instance, SceneOptions, make_instance
+
+__all__ = [
+    "MANIFEST",
+    "Suite",
+    "instance_rng",
+    "load_suite",
+    "make_suite",
+    "save_instance_figure",
+]
+
+MANIFEST = "manifest.json"
+FORMAT = "o3d-spectral-suite"
+VERSION = 1
+
+
+def instance_rng(seed: int, index: int) -> np.random.Generator:
+    """The random generator of instance ``index`` in a suite with ``seed``."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+
+
+def _write_cloud(path: Path, points: np.ndarray, normals: np.ndarray, labels=None) -> None:
+    """Binary little-endian PLY, float32 positions and normals, optional int32 object_id."""
+    cloud = o3d.t.geometry.PointCloud()
+    cloud.point.positions = o3d.core.Tensor(np.ascontiguousarray(points, dtype=np.float32))
+    cloud.point.normals = o3d.core.Tensor(np.ascontiguousarray(normals, dtype=np.float32))
+    if labels is not None:
+        cloud.point.object_id = o3d.core.Tensor(
+            np.ascontiguousarray(labels, dtype=np.int32).reshape(-1, 1)
+        )
+    if not o3d.t.io.write_point_cloud(str(path), cloud):
+        raise OSError(f"could not write {path}")
+
+
+def _build(task: tuple[str, str, int, int, SceneOptions, str]) -> dict:
+    """Generate instance ``index`` and write its clouds; return its manifest entry."""
+    condition, name, seed, index, options, out_dir = task
+    instance = make_instance(condition, name, rng=instance_rng(seed, index), options=options)
+    source_file, target_file = f"{index:04d}_source.ply", f"{index:04d}_target.ply"
+    _write_cloud(
+        Path(out_dir) / source_file,
+        np.asarray(instance.source.points),
+        np.asarray(instance.source.normals),
+    )
+    _write_cloud(
+        Path(out_dir) / target_file,
+        np.asarray(instance.target.points),
+        np.asarray(instance.target.normals),
+        instance.target_labels,
+    )
+    return {
+        "index": index,
+        "source": source_file,
+        "target": target_file,
+        "T_gt": instance.T_gt.tolist(),
+        "source_from_model": instance.source_from_model.tolist(),
+        **instance.metadata,
+    }
+
+
+def _options_json(options: SceneOptions) -> dict:
+    return json.loads(json.dumps(dataclasses.asdict(options)))
+
+
+def _options_from_json(data: dict) -> SceneOptions:
+    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+    fields["intrinsics"] = CameraIntrinsics(**data["intrinsics"])
+    fields["noise"] = DepthNoise(**data["noise"])
+    return SceneOptions(**fields)
+
+
+def make_suite(
+    condition: str,
+    n: int,
+    seed: int,
+    out_dir: str | Path,
+    *,
+    options: SceneOptions | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> Path:
+    """Generate a suite of ``n`` instances and write it to ``out_dir``.
+
+    Instance ``i`` uses model ``model_names()[i % 12]``, so 240 instances hold 20 per object.
+
+    Parameters
+    ----------
+    condition : {"full", "partial", "occluded", "cluttered"}
+        See :mod:`o3d_spectral.scenes`.
+    n : int
+        Number of instances (>= 1).
+    seed : int
+        Suite seed (>= 0); the same seed gives byte-identical files.
+    out_dir : str or Path
+        Folder to create or overwrite (instance files and ``manifest.json``).
+    options : SceneOptions, optional
+        Generator settings, stored in the manifest.
+    workers : int, optional
+        Worker processes; the output does not depend on it.
+    progress : bool, optional
+        Show a tqdm progress bar.
+
+    Returns
+    -------
+    Path
+        Path of the written manifest.
+    """
+    if condition not in CONDITIONS:
+        raise ValueError(f"condition must be one of {', '.join(CONDITIONS)}; got {condition!r}")
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    options = SceneOptions() if options is None else options
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    names = model_names()
+    tasks = [(condition, names[i % len(names)], seed, i, options, str(out)) for i in range(n)]
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=n, desc=f"{condition} suite", unit="inst", disable=not progress)
+    if workers == 1:
+        entries = []
+        for task in tasks:
+            entries.append(_build(task))
+            bar.update()
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            entries = []
+            for entry in pool.map(_build, tasks):
+                entries.append(entry)
+                bar.update()
+    bar.close()
+    manifest = {
+        "format": FORMAT,
+        "version": VERSION,
+        "condition": condition,
+        "n": n,
+        "seed": seed,
+        "options": _options_json(options),
+        "instances": entries,
+    }
+    path = out / MANIFEST
+    path.write_text(json.dumps(manifest, indent=1) + "\n")
+    return path
+
+
+class Suite(Sequence[Instance]):
+    """A suite on disk; instances are read lazily by index.
+
+    Attributes
+    ----------
+    root : Path
+        The suite folder.
+    manifest : dict
+        The parsed ``manifest.json``.
+    options : SceneOptions
+        The generator settings the suite was made with.
+    """
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        path = self.root / MANIFEST
+        if not path.is_file():
+            raise FileNotFoundError(f"no {MANIFEST} in {self.root}; make one with make-suite")
+        self.manifest = json.loads(path.read_text())
+        if self.manifest.get("format") != FORMAT or self.manifest.get("version") != VERSION:
+            raise ValueError(
+                f"{path} is not an {FORMAT} version {VERSION} manifest "
+                f"(format={self.manifest.get('format')!r}, "
+                f"version={self.manifest.get('version')!r})"
+            )
+        self.options = _options_from_json(self.manifest["options"])
+
+    def __repr__(self) -> str:
+        return (
+            f"Suite(root={str(self.root)!r}, condition={self.condition!r}, n={len(self)}, "
+            f"seed={self.manifest['seed']})"
+        )
+
+    @property
+    def condition(self) -> str:
+        """The suite's condition."""
+        return self.manifest["condition"]
+
+    def __len__(self) -> int:
+        return len(self.manifest["instances"])
+
+    def __getitem__(self, index: int) -> Instance:  # type: ignore[override]
+        entry = self.manifest["instances"][index]
+        source = o3d.t.io.read_point_cloud(str(self.root / entry["source"]))
+        target = o3d.t.io.read_point_cloud(str(self.root / entry["target"]))
+        skip = {"index", "source", "target", "T_gt", "source_from_model"}
+        return Instance(
+            source=source.to_legacy(),
+            target=target.to_legacy(),
+            T_gt=np.array(entry["T_gt"]),
+            target_labels=target.point.object_id.numpy().ravel().astype(np.int64),
+            source_from_model=np.array(entry["source_from_model"]),
+            metadata={k: v for k, v in entry.items() if k not in skip},
+        )
+
+    def __iter__(self) -> Iterator[Instance]:
+        for index in range(len(self)):
+            yield self[index]
+
+
+def load_suite(directory: str | Path) -> Suite:
+    """Open the suite in ``directory`` (see :class:`Suite`); instances load on access."""
+    return Suite(directory)
+
+
+def save_instance_figure(
+    instance: Instance, path: str | Path, *, max_points: int = 6000, title: str | None = None
+) -> Path:
+    """Save a PNG of an instance: the input pair, and the source moved by ``T_gt``.
+
+    Source points are blue, the target's object points orange and its other points (table,
+    other objects) grey. Points are drawn in the target's frame, seen from behind the
+    camera for scans. At most ``max_points`` per cloud are drawn (a fixed subsample).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(0)
+
+    def subsample(points: np.ndarray, k: int) -> np.ndarray:
+        return points if len(points) <= k else points[rng.choice(len(points), k, replace=False)]
+
+    source = np.asarray(instance.source.points)
+    moved = source @ instance.T_gt[:3, :3].T + instance.T_gt[:3, 3]
+    target = np.asarray(instance.target.points)
+    on_object = instance.target_labels == 0
+    target_obj = subsample(target[on_object], max_points)
+    target_rest = subsample(target[~on_object], 2 * max_points)
+
+    def to_plot(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Camera frame (x right, y down, z forward) to plot axes (x, depth, up).
+        return points[:, 0], points[:, 2], -points[:, 1]
+
+    fig = plt.figure(figsize=(10, 4.6), dpi=90)
+    panels = [("input: source and target", source), ("ground truth: T_gt @ source", moved)]
+    for k, (label, src) in enumerate(panels):
+        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        if len(target_rest):
+            ax.scatter(*to_plot(target_rest), s=0.3, c="0.75", depthshade=False)
+        ax.scatter(*to_plot(target_obj), s=0.6, c="tab:orange", depthshade=False)
+        ax.scatter(*to_plot(subsample(src, max_points)), s=0.6, c="tab:blue", depthshade=False)
+        shown = np.concatenate([target_obj, target_rest, src])
+        ax.set_box_aspect(np.ptp(shown[:, [0, 2, 1]], axis=0) + 1e-3)
+        ax.view_init(elev=20, azim=-75)
+        ax.set_title(label, fontsize=10)
+        ax.set_xlabel("x (m)", fontsize=8)
+        ax.set_ylabel("z (m)", fontsize=8)
+        ax.set_zlabel("-y (m)", fontsize=8)
+        ax.tick_params(labelsize=6)
+    meta = instance.metadata
+    fig.suptitle(
+        title
+        or (
+            f"{meta['condition']}: {meta['object']}, initial angle "
+            f"{meta['init_angle_deg']:.0f} deg, visible {meta['visible_fraction']:.0%}, "
+            f"occlusion {meta['occlusion']:.0%}  (blue: source, orange: target object)"
+        ),
+        fontsize=10,
+    )
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
