@@ -336,7 +336,13 @@ def _full(name: str, rng: np.random.Generator, options: SceneOptions) -> Instanc
     source, t_gt, source_from_model, info = _present_source(
         name, np.eye(4), rng=rng, options=options
     )
-    meta = {"scene_objects": [name], "visible_fraction": 1.0, "occlusion": 0.0, "view": None}
+    meta = {
+        "scene_objects": [name],
+        "object_poses": [np.eye(4).tolist()],
+        "visible_fraction": 1.0,
+        "occlusion": 0.0,
+        "view": None,
+    }
     meta.update(info)
     return Instance(
         source,
@@ -378,13 +384,17 @@ def _scan_instance(
     options: SceneOptions,
     meta: dict,
 ) -> Instance:
-    """Render world-frame ``meshes`` (the object is label 0, world = model frame of the
-    object) from ``pose``, scan with noise, keep ``"object"`` or ``"all"`` points."""
+    """Render world-frame ``meshes`` (the object is label 0) from ``pose``, scan with noise,
+    keep ``"object"`` or ``"all"`` points; ``meta["world_from_objects"]`` (object first)
+    becomes the target-frame ``meta["object_poses"]``."""
     view = render(meshes, options.intrinsics, pose, labels=labels)
     scan = scan_from_view(view, noise=options.noise, rng=rng)
     if keep == "object":
         scan = scan.select(scan.object_ids == 0)
-    target_from_model = np.linalg.inv(pose) @ meta.pop("world_from_object")
+    camera_from_world = np.linalg.inv(pose)
+    object_poses = [camera_from_world @ w for w in meta.pop("world_from_objects")]
+    meta["object_poses"] = [p.tolist() for p in object_poses]
+    target_from_model = object_poses[0]
     source, t_gt, source_from_model, info = _present_source(
         name, target_from_model, rng=rng, options=options
     )
@@ -405,7 +415,7 @@ def _partial(name: str, rng: np.random.Generator, options: SceneOptions) -> Inst
         "scene_objects": [name],
         "occlusion": 0.0,
         "view": _scan_metadata(pose, distance),
-        "world_from_object": np.eye(4),
+        "world_from_objects": [np.eye(4)],
     }
     return _scan_instance(
         name, [mesh], [0], pose, keep="object", rng=rng, options=options, meta=meta
@@ -502,7 +512,7 @@ def _occluded(
         "occlusion_requested": float(requested),
         "occluder": kind,
         "view": _scan_metadata(pose, distance),
-        "world_from_object": np.eye(4),
+        "world_from_objects": [np.eye(4)],
     }
     return _scan_instance(
         name,
@@ -639,7 +649,7 @@ def _cluttered(name: str, rng: np.random.Generator, options: SceneOptions) -> In
         "occlusion": occlusion,
         "scene_objects": names,
         "view": _scan_metadata(pose, float(np.linalg.norm(eye - center))),
-        "world_from_object": poses[0],
+        "world_from_objects": poses,
     }
     return _scan_instance(
         name,

@@ -240,9 +240,10 @@ def save_instance_figure(
 ) -> Path:
     """Save a PNG of an instance: the input pair, and the source moved by ``T_gt``.
 
-    Source points are blue, the target's object points orange and its other points (table,
-    other objects) grey. Points are drawn in the target's frame, seen from behind the
-    camera for scans. At most ``max_points`` per cloud are drawn (a fixed subsample).
+    Source points are blue, the target's object points orange, other objects dark grey and
+    table or occluder points light grey. Points are drawn in the target's frame, seen from
+    behind the camera for scans; the second panel is cropped to 5 cm around the target
+    object. At most ``max_points`` per cloud are drawn (a fixed subsample).
     """
     import matplotlib
 
@@ -257,23 +258,38 @@ def save_instance_figure(
     source = np.asarray(instance.source.points)
     moved = source @ instance.T_gt[:3, :3].T + instance.T_gt[:3, 3]
     target = np.asarray(instance.target.points)
-    on_object = instance.target_labels == 0
-    target_obj = subsample(target[on_object], max_points)
-    target_rest = subsample(target[~on_object], 2 * max_points)
+    labels = instance.target_labels
+    target_obj = subsample(target[labels == 0], max_points)
+    others = subsample(target[labels > 0], max_points)
+    table = subsample(target[labels < 0], 2 * max_points)
+    lo, hi = target_obj.min(axis=0) - 0.05, target_obj.max(axis=0) + 0.05
+
+    def crop(points: np.ndarray) -> np.ndarray:
+        return points[np.all((points >= lo) & (points <= hi), axis=1)]
 
     def to_plot(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # Camera frame (x right, y down, z forward) to plot axes (x, depth, up).
         return points[:, 0], points[:, 2], -points[:, 1]
 
     fig = plt.figure(figsize=(10, 4.6), dpi=90)
-    panels = [("input: source and target", source), ("ground truth: T_gt @ source", moved)]
-    for k, (label, src) in enumerate(panels):
+    panels = [
+        ("input: source and target", source, lambda p: p),
+        ("ground truth: T_gt @ source (close-up)", moved, crop),
+    ]
+    for k, (label, src, view) in enumerate(panels):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
-        if len(target_rest):
-            ax.scatter(*to_plot(target_rest), s=0.3, c="0.75", depthshade=False)
-        ax.scatter(*to_plot(target_obj), s=0.6, c="tab:orange", depthshade=False)
-        ax.scatter(*to_plot(subsample(src, max_points)), s=0.6, c="tab:blue", depthshade=False)
-        shown = np.concatenate([target_obj, target_rest, src])
+        layers = [(table, 0.3, "0.8", 1.0), (others, 0.3, "0.45", 1.0)]
+        layers += [
+            (target_obj, 0.6, "tab:orange", 0.35),
+            (subsample(src, max_points), 0.4, "tab:blue", 1.0),
+        ]
+        shown = []
+        for points, size, colour, alpha in layers:
+            points = view(points)
+            if len(points):
+                ax.scatter(*to_plot(points), s=size, c=colour, alpha=alpha, depthshade=False)
+                shown.append(points)
+        shown = np.concatenate(shown)
         ax.set_box_aspect(np.ptp(shown[:, [0, 2, 1]], axis=0) + 1e-3)
         ax.view_init(elev=20, azim=-75)
         ax.set_title(label, fontsize=10)
