@@ -42,6 +42,10 @@ class RealFFT3:
         ``(nx, ny, nz // 2 + 1)``.
     threads : int, optional
         Worker threads.
+    planning : {"estimate", "measure"}
+        FFTW planner effort: ``"measure"`` times candidate algorithms (a few hundred
+        milliseconds per new shape, about 20% faster transforms afterwards: worth it for
+        long servoing runs); ``"estimate"`` plans at once (right for one registration).
 
     Notes
     -----
@@ -49,14 +53,18 @@ class RealFFT3:
     that the next call overwrites: copy a result you want to keep.
     """
 
-    def __init__(self, shape: tuple[int, int, int], *, threads: int = 1) -> None:
+    def __init__(
+        self, shape: tuple[int, int, int], *, threads: int = 1, planning: str = "estimate"
+    ) -> None:
+        if planning not in ("estimate", "measure"):
+            raise ValueError(f"planning must be 'estimate' or 'measure', got {planning!r}")
         self.shape = tuple(int(n) for n in shape)
         self.spectrum_shape = (*self.shape[:2], self.shape[2] // 2 + 1)
         self.threads = threads
         if pyfftw is not None:
             real = pyfftw.empty_aligned(self.shape, dtype="float64")
             spec = pyfftw.empty_aligned(self.spectrum_shape, dtype="complex128")
-            kwargs = dict(threads=threads, planner_effort="FFTW_MEASURE")
+            kwargs = dict(threads=threads, planner_effort=f"FFTW_{planning.upper()}")
             self._forward = pyfftw.builders.rfftn(real, **kwargs)
             self._inverse = pyfftw.builders.irfftn(spec, s=self.shape, **kwargs)
 
@@ -74,6 +82,6 @@ class RealFFT3:
 
 
 @lru_cache(maxsize=8)
-def fft_plan(shape: tuple[int, int, int], threads: int = 1) -> RealFFT3:
+def fft_plan(shape: tuple[int, int, int], threads: int = 1, planning: str = "estimate") -> RealFFT3:
     """Cached :class:`RealFFT3` for ``shape`` (plans are reused across calls)."""
-    return RealFFT3(shape, threads=threads)
+    return RealFFT3(shape, threads=threads, planning=planning)

@@ -104,7 +104,7 @@ def curvature_scale(F: ArrayLike, G: ArrayLike) -> float:
 
 
 def rotation_step(
-    local: RotationGradient, scale: float, *, preconditioned: bool = True, floor: float = 0.1
+    local: RotationGradient, scale: float, *, preconditioned: bool = True, floor: float = 1e-3
 ) -> NDArray[np.float64]:
     """Gradient of ``C_r`` turned into a rotation vector (radians): the full step.
 
@@ -112,10 +112,12 @@ def rotation_step(
     curvature ``scale`` (:func:`curvature_scale`) makes it an angle, so that
     ``lambda_r`` is the fraction of the remaining error closed per iteration whatever the
     cloud. With ``preconditioned``, the gradient is divided by the local curvature
-    instead, axis by axis (a damped Newton step): axes where the EGI is nearly symmetric
-    (the long axis of a bottle) then converge as fast as the others. Curvatures below
-    ``floor * scale`` (and non-concave directions, far from a peak) are raised to
-    ``floor * scale``, which bounds the step.
+    instead, axis by axis (a Newton step): axes about which the EGI is nearly symmetric
+    (the axis of a mug, whose handle alone fixes the rotation) then converge as fast as
+    the others, and the step's length is the remaining error. The curvature's absolute
+    value is used (a "saddle-free" Newton step, Dauphin et al. 2014), so the step always
+    climbs, also where ``C_r`` is not concave; curvatures are floored at
+    ``floor * scale``.
 
     Parameters
     ----------
@@ -133,5 +135,5 @@ def rotation_step(
     if not preconditioned:
         return local.gradient / scale
     eigenvalues, vectors = np.linalg.eigh(-local.hessian)
-    curvature = np.maximum(eigenvalues, floor * scale)
+    curvature = np.maximum(np.abs(eigenvalues), floor * scale)
     return vectors @ ((vectors.T @ local.gradient) / curvature)

@@ -35,8 +35,9 @@ class PeakEstimate:
         Shift of ``g`` relative to ``f`` in voxels (``g(x) ~ f(x - shift)``), signed, in
         ``[-n/2, n/2)`` per axis before the sub-voxel part.
     peak : float
-        Height of the correlation peak in [0, 1]: 1 for a perfect shift, near 0 when the
-        grids share no structure (a confidence figure).
+        Height of the correlation peak in [0, 1]: 1 for a perfect shift (a little less
+        when some frequencies are too weak to whiten), near 0 when the grids share no
+        structure (a confidence figure).
     """
 
     shift: NDArray[np.float64]
@@ -94,6 +95,7 @@ def cross_power_peak(
     *,
     sigma: float = 1.0,
     eps: float = 1e-6,
+    positive_below: tuple[int, int, int] | None = None,
 ) -> PeakEstimate:
     """Phase correlation of two half spectra (eqs. cross_power_spectrum, fourier_shift_solution).
 
@@ -108,6 +110,11 @@ def cross_power_peak(
     eps : float
         Cross-power terms smaller than ``eps`` times the largest are not whitened
         (they carry no phase information).
+    positive_below : tuple of 3 int, optional
+        Peak indices below this (per axis) are positive shifts, the others negative
+        (``index - n``). Half the grid when omitted; pass the fixed grid's size when the
+        two grids were zero-padded from their corners, so that shifts in
+        ``[-(moving size - 1), fixed size - 1]`` are all read correctly.
 
     Returns
     -------
@@ -122,7 +129,8 @@ def cross_power_peak(
     delta = fft.inverse(cross)
     index = np.unravel_index(int(np.argmax(delta)), delta.shape)
     shape = np.asarray(delta.shape)
-    integer = np.where(np.asarray(index) >= (shape + 1) // 2, np.asarray(index) - shape, index)
+    limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
+    integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
     # Height of a perfect match: the window's sum over the full spectrum over the grid size.
     full_sum = 2.0 * window.sum() - window[..., 0].sum()
     if fft.shape[2] % 2 == 0:

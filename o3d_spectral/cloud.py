@@ -1,0 +1,211 @@
+"""Input clouds: conversion from Open3D and numpy types, validation, down-sampling, normals.
+
+Every public entry point passes its clouds through :func:`as_arrays` (which copies, so the
+caller's cloud is never modified) and :func:`prepare`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "MIN_POINTS"]
+
+#: Fewest points (after down-sampling to the voxel size) the method accepts.
+MIN_POINTS = 10
+
+CloudLike = "o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | numpy.ndarray"
+
+
+@dataclass(frozen=True)
+class CloudArrays:
+    """A cloud as arrays (always copies of the input).
+
+    Attributes
+    ----------
+    points : ndarray, shape (N, 3)
+        Metres.
+    normals : ndarray, shape (N, 3) or None
+        As given (not necessarily unit length), or None when the input had none.
+    """
+
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64] | None
+
+
+def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
+    """Copy a cloud into float64 arrays and check it.
+
+    Parameters
+    ----------
+    cloud : open3d.geometry.PointCloud, open3d.t.geometry.PointCloud or ndarray
+        A numpy array must have shape (N, 3) (points) or (N, 6) (points, then normals).
+    name : str
+        Argument name used in error messages.
+
+    Raises
+    ------
+    TypeError
+        For an unsupported type.
+    ValueError
+        For an empty cloud, a wrong array shape, or non-finite coordinates or normals.
+    """
+    if isinstance(cloud, o3d.geometry.PointCloud):
+        points = np.asarray(cloud.points, dtype=np.float64).copy()
+        normals = np.asarray(cloud.normals, dtype=np.float64).copy()
+        normals = normals if cloud.has_normals() else None
+    elif isinstance(cloud, o3d.t.geometry.PointCloud):
+        if "positions" not in cloud.point:
+            raise ValueError(f"{name}: the tensor point cloud has no 'positions'")
+        points = cloud.point.positions.numpy().astype(np.float64).reshape(-1, 3)
+        normals = (
+            cloud.point.normals.numpy().astype(np.float64).reshape(-1, 3)
+            if "normals" in cloud.point
+            else None
+        )
+    elif isinstance(cloud, np.ndarray | list | tuple):
+        array = np.array(cloud, dtype=np.float64)
+        if array.ndim != 2 or array.shape[1] not in (3, 6):
+            raise ValueError(
+                f"{name}: a numpy cloud must have shape (N, 3) or (N, 6), got {array.shape}"
+            )
+        points = np.ascontiguousarray(array[:, :3])
+        normals = np.ascontiguousarray(array[:, 3:]) if array.shape[1] == 6 else None
+    else:
+        raise TypeError(f"{name}: expected {CloudLike}, got {type(cloud).__name__}")
+    if len(points) == 0:
+        raise ValueError(f"{name} is empty")
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if bad.any():
+        raise ValueError(
+            f"{name} has {int(bad.sum())} points with NaN or infinite coordinates; "
+            "remove them first (e.g. PointCloud.remove_non_finite_points())"
+        )
+    if normals is not None:
+        if normals.shape != points.shape:
+            raise ValueError(f"{name}: {len(normals)} normals for {len(points)} points")
+        bad = ~np.all(np.isfinite(normals), axis=1)
+        if bad.any():
+            raise ValueError(f"{name} has {int(bad.sum())} normals with NaN or infinite entries")
+    return CloudArrays(points, normals)
+
+
+def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
+    """A new legacy Open3D cloud holding the arrays (normals if any)."""
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(arrays.points))
+    if arrays.normals is not None:
+        cloud.normals = o3d.utility.Vector3dVector(arrays.normals)
+    return cloud
+
+
+def _orient(cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None) -> None:
+    """Orient estimated normals in place (on our own copy)."""
+    points = np.asarray(cloud.points)
+    if camera_location is None:
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        margin = 0.1 * (upper - lower)
+        origin_inside = bool(np.all(lower - margin <= 0.0) and np.all(0.0 <= upper + margin))
+        if not origin_inside:  # a scan in its sensor's frame: the sensor is at the origin
+            camera_location = np.zeros(3)
+    if camera_location is not None:
+        cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
+        return
+    # A model in its own frame: propagate one orientation, then point it outward.
+    cloud.orient_normals_consistent_tangent_plane(10)
+    normals = np.asarray(cloud.normals)
+    if np.sum(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
+        cloud.normals = o3d.utility.Vector3dVector(-normals)
+
+
+@dataclass(frozen=True)
+class PreparedCloud:
+    """A cloud reduced to what the method uses.
+
+    Attributes
+    ----------
+    points : ndarray, shape (M, 3)
+        One point per occupied voxel of ``voxel_size`` (the voxel grid's input), metres.
+    normals : ndarray, shape (K, 3)
+        Unit normals, the EGI's input (each counts once).
+    """
+
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+
+
+def prepare(
+    arrays: CloudArrays,
+    voxel_size: float,
+    *,
+    egi_voxel_size: float | None = None,
+    max_egi_points: int = 50_000,
+    normal_radius: float | None = None,
+    camera_location: ArrayLike | None = None,
+    name: str = "cloud",
+) -> PreparedCloud:
+    """Down-sample a cloud and provide unit normals.
+
+    Given normals are used point by point, unaveraged, so that the EGI of a rotated copy
+    of a cloud is exactly the rotated EGI (every point counts once: down-sample a cloud
+    of very uneven density first). When the cloud has no normals they are estimated on
+    the cloud averaged per cell of ``egi_voxel_size`` (PCA over ``normal_radius``, 30
+    neighbours at most) and oriented: towards ``camera_location``
+    when given; otherwise towards the origin when the origin lies outside the cloud (a
+    scan in its sensor's frame), else consistently along the surface and outward from the
+    centroid (a model in its own frame). The voxel grid's points are the cloud averaged
+    per voxel of ``voxel_size``.
+
+    Parameters
+    ----------
+    arrays : CloudArrays
+    voxel_size : float
+        Metres.
+    egi_voxel_size : float, optional
+        Metres; ``voxel_size / 4`` when omitted.
+    max_egi_points : int
+        Normals kept at most for the EGI (a fixed, evenly spread subset beyond that).
+    normal_radius : float, optional
+        Metres; ``2.5 * voxel_size`` when omitted.
+    camera_location : array_like, shape (3,), optional
+        Sensor position in the cloud's frame, metres.
+    name : str
+        Argument name used in error messages.
+
+    Returns
+    -------
+    PreparedCloud
+
+    Raises
+    ------
+    ValueError
+        When fewer than :data:`MIN_POINTS` voxels are occupied, or the points are
+        (nearly) collinear.
+    """
+    cell = egi_voxel_size or voxel_size / 4.0
+    fine = to_legacy(CloudArrays(arrays.points, None)).voxel_down_sample(cell)
+    points = np.asarray(fine.voxel_down_sample(voxel_size).points).copy()
+    if len(points) < MIN_POINTS:
+        raise ValueError(
+            f"{name} occupies {len(points)} voxels of {voxel_size} m; the method needs "
+            f"at least {MIN_POINTS}: use a smaller voxel_size or a denser cloud"
+        )
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if spread[1] < 1e-3 * spread[0] or spread[1] < 0.5 * voxel_size:
+        raise ValueError(f"{name} is degenerate: its points lie (nearly) on a line")
+    if arrays.normals is None:
+        radius = 2.5 * voxel_size if normal_radius is None else normal_radius
+        fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
+        _orient(fine, camera_location)
+        normals = np.asarray(fine.normals)
+    else:
+        normals = arrays.normals
+    length = np.linalg.norm(normals, axis=1)
+    keep = np.flatnonzero(length > 1e-6)
+    if len(keep) < MIN_POINTS:
+        raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
+    if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)
+        keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
+    return PreparedCloud(points, normals[keep] / length[keep, None])

@@ -1,0 +1,143 @@
+"""Settings of the spectral method, in the style of Open3D's ``*Option`` and
+``*ConvergenceCriteria`` classes (frozen dataclasses with a readable ``repr``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .grid import SPLAT_MODES
+
+__all__ = ["SpectralRegistrationOption", "SpectralConvergenceCriteria"]
+
+
+@dataclass(frozen=True)
+class SpectralRegistrationOption:
+    """How the clouds are represented and how the control law moves.
+
+    Attributes
+    ----------
+    bandwidth : int
+        ``B``: spherical harmonics of degree ``0 <= l < B`` (the paper's sum, its
+        ``B = 16``); the EGI grid is ``2B x 2B``. See ``docs/conventions.md`` for the
+        paper's ambiguous ``l_max = 32``.
+    lambda_t : float
+        Translation gain in (0, 1]: fraction of the phase-correlation shift applied per
+        iteration (eq. control_law).
+    lambda_r : float
+        Rotation gain in (0, 1]: fraction of the rotation step applied per iteration. The
+        gradient is divided by the correlation's curvature, so the step is an angle and
+        one gain fits every cloud.
+    preconditioned : bool
+        Divide the rotation gradient by the local curvature axis by axis (a damped Newton
+        step) rather than by its mean (the paper's plain gradient, scaled).
+    max_rotation_step : float
+        Largest rotation applied in one iteration, radians.
+    egi_binned : bool
+        Build the EGI as the paper's histogram on the ``2B x 2B`` grid (True) or project
+        the normals exactly (False, default; no binning error).
+    egi_smoothing : tuple of float
+        Widths (radians) of the heat kernel smoothing the EGI, coarse to fine. A wide
+        kernel gives the rotation correlation a wide basin; a narrow one a sharp peak.
+        The law starts with the first and moves to the next when the rotation step falls
+        below ``smoothing_switch``.
+    smoothing_switch : float
+        Rotation step (radians) below which the next, finer smoothing is used.
+    egi_voxel_size : float or None
+        Cell (metres) in which normals are averaged before the EGI is built;
+        ``voxel_size / 4`` when None.
+    voxel_weighting : {"trilinear", "count", "binary"}
+        How points fill the voxel grid; ``"binary"`` is the paper's.
+    peak_width : float
+        Width of the Gaussian window of the phase correlation, voxels (sub-voxel fit).
+    max_correspondence_distance : float or None
+        Distance (metres) at which ``fitness``, ``inlier_rmse`` and
+        ``correspondence_set`` of the result are measured; the voxel size when None.
+    normal_radius : float or None
+        Search radius (metres) for normals estimated when a cloud has none;
+        ``2.5 * voxel_size`` when None.
+    camera_location : tuple of 3 float or None
+        Where the sensor was (in the clouds' frame), to orient estimated normals.
+    max_grid_memory : float
+        Largest memory (bytes) the voxel grids and their FFTs may take.
+    fft_planning : {"estimate", "measure"}
+        FFTW planning effort (:class:`o3d_spectral.fft.RealFFT3`): ``"measure"`` pays
+        off over hundreds of iterations on one grid shape (visual servoing).
+    """
+
+    bandwidth: int = 16
+    lambda_t: float = 0.5
+    lambda_r: float = 0.5
+    preconditioned: bool = True
+    max_rotation_step: float = 0.35
+    egi_binned: bool = False
+    egi_smoothing: tuple[float, ...] = (0.3, 0.1)
+    smoothing_switch: float = 0.05
+    egi_voxel_size: float | None = None
+    voxel_weighting: str = "trilinear"
+    peak_width: float = 1.0
+    max_correspondence_distance: float | None = None
+    normal_radius: float | None = None
+    camera_location: tuple[float, float, float] | None = None
+    max_grid_memory: float = 2.0 * 2**30
+    fft_planning: str = "estimate"
+
+    def __post_init__(self) -> None:
+        if int(self.bandwidth) != self.bandwidth or not 2 <= self.bandwidth <= 128:
+            raise ValueError(f"bandwidth must be an integer in [2, 128], got {self.bandwidth}")
+        for name in ("lambda_t", "lambda_r"):
+            value = getattr(self, name)
+            if not 0.0 < value <= 1.0:
+                raise ValueError(f"{name} must be in (0, 1], got {value}")
+        if self.voxel_weighting not in SPLAT_MODES:
+            raise ValueError(
+                f"voxel_weighting must be one of {SPLAT_MODES}, got {self.voxel_weighting!r}"
+            )
+        for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.fft_planning not in ("estimate", "measure"):
+            raise ValueError(
+                f"fft_planning must be 'estimate' or 'measure', got {self.fft_planning!r}"
+            )
+        smoothing = tuple(float(s) for s in np.atleast_1d(self.egi_smoothing))
+        if not smoothing or not all(s >= 0 for s in smoothing):
+            raise ValueError(f"egi_smoothing must be widths >= 0, got {self.egi_smoothing}")
+        object.__setattr__(self, "egi_smoothing", smoothing)
+        if self.egi_voxel_size is not None and not self.egi_voxel_size > 0:
+            raise ValueError(f"egi_voxel_size must be positive, got {self.egi_voxel_size}")
+
+
+@dataclass(frozen=True)
+class SpectralConvergenceCriteria:
+    """When the control law stops (eq. updaterule).
+
+    The paper stops when ``||grad_glob T|| + ||grad C_r|| < eps_g``, adding metres to
+    correlation units. Here each term has its own tolerance in its own unit: iterations
+    stop when the full translation correction is below ``translation_tolerance`` *and*
+    the full rotation step is below ``rotation_tolerance``.
+
+    Attributes
+    ----------
+    max_iteration : int
+        Iterations at most.
+    translation_tolerance : float or None
+        Metres; ``0.02 * voxel_size`` when None.
+    rotation_tolerance : float
+        Radians.
+    """
+
+    max_iteration: int = 100
+    translation_tolerance: float | None = None
+    rotation_tolerance: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if int(self.max_iteration) != self.max_iteration or self.max_iteration < 1:
+            raise ValueError(f"max_iteration must be a positive integer, got {self.max_iteration}")
+        if self.translation_tolerance is not None and not self.translation_tolerance > 0:
+            raise ValueError(
+                f"translation_tolerance must be positive, got {self.translation_tolerance}"
+            )
+        if not self.rotation_tolerance > 0:
+            raise ValueError(f"rotation_tolerance must be positive, got {self.rotation_tolerance}")

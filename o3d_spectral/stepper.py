@@ -1,0 +1,358 @@
+"""The control law (paper, eq. control_law and Algorithm 1) as a reusable stepper.
+
+A :class:`SpectralStepper` holds the fixed cloud's spectra, computed once: its voxel
+grid's 3D FFT and its EGI's spherical-harmonic coefficients. For a moving cloud at a pose
+``x -> R (x - c) + c + T`` (``c``: the moving cloud's centroid, the paper's rotation about
+the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full corrections:
+
+- translation ``grad_glob T`` (metres): the phase-correlation shift that takes the moved
+  cloud onto the fixed one (eq. fourier_shift_solution), sub-voxel;
+- rotation (radians): ``grad C_r`` (eq. cr_derivative) divided by the correlation's
+  curvature (:func:`o3d_spectral.rotation.rotation_step`),
+
+and the law applies ``T <- T + lambda_t grad_glob T``, ``R <- R exp(lambda_r hat(step))``.
+:meth:`SpectralStepper.step` does one cycle for a freshly captured cloud (pose identity),
+as visual servoing needs; :func:`o3d_spectral.registration_spectral` iterates
+:meth:`~SpectralStepper.evaluate` on one source cloud.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import so3
+from .cloud import PreparedCloud, as_arrays, prepare
+from .egi import coefficients as egi_coefficients
+from .egi import normalise, smooth
+from .fft import RealFFT3, fft_plan, next_fast_len
+from .grid import Box, Lattice, check_memory, splat
+from .options import SpectralRegistrationOption
+from .rotation import curvature_scale, gradient, rotation_step
+from .translation import cross_power_peak
+
+__all__ = ["MovingCloud", "Evaluation", "Step", "SpectralStepper"]
+
+
+@dataclass(frozen=True)
+class MovingCloud:
+    """A moving cloud ready for :meth:`SpectralStepper.evaluate`.
+
+    Attributes
+    ----------
+    points : ndarray, shape (M, 3)
+        Down-sampled points (metres), one per voxel.
+    centroid : ndarray, shape (3,)
+        Pivot of the rotation, metres.
+    radius : float
+        Largest distance of a point from the centroid, metres.
+    coefficients : ndarray, shape (B, 2B - 1)
+        EGI coefficients ``F^l`` before smoothing and normalisation.
+    """
+
+    points: NDArray[np.float64]
+    centroid: NDArray[np.float64]
+    radius: float
+    coefficients: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Full corrections and costs at one pose of the moving cloud.
+
+    Attributes
+    ----------
+    translation : ndarray, shape (3,)
+        ``grad_glob T``: shift (metres, fixed frame) taking the moved cloud onto the fixed one.
+    rotation : ndarray, shape (3,)
+        Rotation step (radians) for a right perturbation ``R exp(hat(rotation))``.
+    rotation_gradient : ndarray, shape (3,)
+        The paper's ``grad C_r(R, e_k)``, before scaling.
+    correlation : float
+        ``C_r(R)`` of the normalised EGIs, in [-1/4pi, 1/4pi].
+    translation_peak : float
+        Height of the phase-correlation peak in [0, 1] (1: identical grids).
+    cost_translation, cost_rotation : float
+        ``J_t`` and ``J_r`` (eqs. translation_cost_function, rotation_cost_function) on
+        unit-norm grids and coefficients, each in [0, 2].
+    """
+
+    translation: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    rotation_gradient: NDArray[np.float64]
+    correlation: float
+    translation_peak: float
+    cost_translation: float
+    cost_rotation: float
+
+
+@dataclass(frozen=True)
+class Step:
+    """Increments of one control cycle for a captured cloud.
+
+    The moving cloud should be moved by ``x -> delta_rotation (x - pivot) + pivot +
+    delta_translation`` (equivalently by :attr:`transformation`); a camera that observes
+    it moves by the inverse.
+
+    Attributes
+    ----------
+    delta_rotation : ndarray, shape (3, 3)
+        ``exp(lambda_r hat(rotation step))``.
+    delta_translation : ndarray, shape (3,)
+        ``lambda_t grad_glob T``, metres.
+    pivot : ndarray, shape (3,)
+        Centroid of the captured cloud, metres.
+    evaluation : Evaluation
+        Full corrections and costs.
+    """
+
+    delta_rotation: NDArray[np.float64]
+    delta_translation: NDArray[np.float64]
+    pivot: NDArray[np.float64]
+    evaluation: Evaluation
+
+    @property
+    def transformation(self) -> NDArray[np.float64]:
+        """The increment as a 4x4 rigid transform in the cloud's frame."""
+        out = np.eye(4)
+        out[:3, :3] = self.delta_rotation
+        out[:3, 3] = self.pivot + self.delta_translation - self.delta_rotation @ self.pivot
+        return out
+
+
+class SpectralStepper:
+    """Spectra of a fixed cloud, and the control law against it.
+
+    Parameters
+    ----------
+    target : PointCloud, tensor PointCloud or ndarray (N, 3) / (N, 6)
+        The fixed cloud (reference), metres. Not modified. Normals are estimated when
+        absent (see :func:`o3d_spectral.cloud.prepare`).
+    voxel_size : float
+        Voxel edge ``r``, metres (the paper: 0.008).
+    option : SpectralRegistrationOption, optional
+
+    Notes
+    -----
+    Grids of the moving cloud are cubes large enough to hold it under any rotation; the
+    FFT size per axis is the fixed grid's size plus the moving grid's (rounded up to a
+    fast length), which keeps every shift between the two unambiguous whatever the
+    distance between the clouds.
+    """
+
+    def __init__(
+        self,
+        target: object,
+        voxel_size: float,
+        *,
+        option: SpectralRegistrationOption | None = None,
+    ) -> None:
+        if not (np.isfinite(voxel_size) and voxel_size > 0):
+            raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
+        self.option = option or SpectralRegistrationOption()
+        self.voxel_size = float(voxel_size)
+        prepared = self._prepare(target, "target")
+        points = prepared.points
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, self.voxel_size)
+        self.target_box = self.lattice.box_around(lower, upper, margin=2)
+        check_memory(self.target_box.shape, self.option.max_grid_memory, "target")
+        grid = splat(points, self.target_box, mode=self.option.voxel_weighting)
+        self._target_grid = grid / np.linalg.norm(grid)
+        self._target_spectra: dict[tuple[int, int, int], NDArray[np.complex128]] = {}
+        raw = self._egi(prepared.normals)
+        self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
+        self.target_points = points
+        self.level = 0
+
+    @property
+    def levels(self) -> int:
+        """Number of EGI smoothing levels (``option.egi_smoothing``)."""
+        return len(self.option.egi_smoothing)
+
+    def reset(self) -> None:
+        """Start again from the coarsest smoothing level (for a new servoing run)."""
+        self.level = 0
+
+    # -- preparation -------------------------------------------------------------------
+    def _prepare(self, cloud: object, name: str) -> PreparedCloud:
+        arrays = as_arrays(cloud, name)
+        extent = float(np.max(np.ptp(arrays.points, axis=0)))
+        if extent < 4 * self.voxel_size:
+            raise ValueError(
+                f"{name} spans {extent:.4g} m, under 4 voxels of {self.voxel_size} m: use a "
+                "smaller voxel_size (check the clouds are in metres)"
+            )
+        return prepare(
+            arrays,
+            self.voxel_size,
+            egi_voxel_size=self.option.egi_voxel_size,
+            normal_radius=self.option.normal_radius,
+            camera_location=self.option.camera_location,
+            name=name,
+        )
+
+    def _egi(self, normals: NDArray[np.float64]) -> NDArray[np.float64]:
+        return egi_coefficients(normals, self.option.bandwidth, binned=self.option.egi_binned)
+
+    def _smooth(self, raw: NDArray[np.float64], level: int) -> NDArray[np.float64]:
+        return normalise(smooth(raw, self.option.egi_smoothing[level]))
+
+    def moving(
+        self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None
+    ) -> MovingCloud:
+        """Prepare a moving cloud: down-sample, normals, EGI coefficients.
+
+        Parameters
+        ----------
+        cloud : PointCloud, tensor PointCloud or ndarray (N, 3) / (N, 6)
+            Metres; not modified.
+        name : str
+            Argument name for error messages.
+        transformation : array_like, shape (4, 4), optional
+            Rigid transform applied after preparation (normals are estimated in the
+            cloud's own frame first).
+        """
+        prepared = self._prepare(cloud, name)
+        points, normals = prepared.points, prepared.normals
+        if transformation is not None:
+            M = np.asarray(transformation, dtype=np.float64)
+            points, normals = points @ M[:3, :3].T + M[:3, 3], normals @ M[:3, :3].T
+        centroid = points.mean(axis=0)
+        radius = float(np.max(np.linalg.norm(points - centroid, axis=1)))
+        return MovingCloud(points, centroid, radius, self._egi(normals))
+
+    # -- translation -------------------------------------------------------------------
+    def _moving_box(self, moving: MovingCloud, centre: NDArray[np.float64]) -> Box:
+        side = next_fast_len(int(np.ceil(2.0 * moving.radius / self.voxel_size)) + 4)
+        half = side / 2.0 * self.voxel_size
+        offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
+        return Box(self.lattice, offset.astype(np.int64), (side, side, side))
+
+    def _fft(self, moving_box: Box) -> tuple[RealFFT3, NDArray[np.complex128]]:
+        shape = tuple(
+            next_fast_len(a + b)
+            for a, b in zip(self.target_box.shape, moving_box.shape, strict=True)
+        )
+        if shape not in self._target_spectra:
+            check_memory(shape, self.option.max_grid_memory, "voxel grids")
+            fft = fft_plan(shape, planning=self.option.fft_planning)
+            padded = np.zeros(shape)
+            t = self.target_box.shape
+            padded[: t[0], : t[1], : t[2]] = self._target_grid
+            self._target_spectra[shape] = np.array(fft.forward(padded))
+        return fft_plan(shape, planning=self.option.fft_planning), self._target_spectra[shape]
+
+    def _translation_cost(self, grid: NDArray[np.float64], box: Box) -> float:
+        """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice."""
+        q = box.offset - self.target_box.offset
+        t_shape, m_shape = np.asarray(self.target_box.shape), np.asarray(box.shape)
+        lo, hi = np.maximum(q, 0), np.minimum(q + m_shape, t_shape)
+        overlap = 0.0
+        if np.all(hi > lo):
+            g = self._target_grid[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+            a, b = lo - q, hi - q
+            overlap = float(np.sum(g * grid[a[0] : b[0], a[1] : b[1], a[2] : b[2]]))
+        return 1.0 - overlap  # 1/2 (|g|^2 + |f|^2) - <g, f> with |g| = |f| = 1
+
+    # -- the law -----------------------------------------------------------------------
+    def evaluate(
+        self,
+        moving: MovingCloud,
+        rotation: ArrayLike | None = None,
+        translation: ArrayLike | None = None,
+        *,
+        level: int = -1,
+    ) -> Evaluation:
+        """Full corrections for the moving cloud at pose ``(rotation, translation)``.
+
+        Parameters
+        ----------
+        moving : MovingCloud
+            From :meth:`moving`.
+        rotation : array_like, shape (3, 3), optional
+            ``R`` (identity when omitted).
+        translation : array_like, shape (3,), optional
+            ``T``, metres (zero when omitted). The pose maps ``x`` to
+            ``R (x - c) + c + T``.
+        level : int
+            EGI smoothing level (index into ``option.egi_smoothing``; the finest by default).
+        """
+        R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        T = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
+        centre = moving.centroid + T
+        # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
+        moved = (moving.points - moving.centroid) @ R.T + centre
+        box = self._moving_box(moving, centre)
+        fft, G = self._fft(box)
+        buffer = np.zeros(fft.shape)
+        splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
+        norm = np.linalg.norm(buffer)
+        buffer /= norm
+        F = fft.forward(buffer)
+        peak = cross_power_peak(
+            F, G, fft, sigma=self.option.peak_width, positive_below=self.target_box.shape
+        )
+        shift = (self.target_box.offset - box.offset + peak.shift) * self.voxel_size
+        cost_t = self._translation_cost(
+            buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box
+        )
+        # Rotation: gradient of the EGI correlation, scaled to an angle.
+        F, G = self._smooth(moving.coefficients, level), self.target_coefficients[level]
+        local = gradient(F, G, R)
+        scale = curvature_scale(F, G)
+        step = rotation_step(local, scale, preconditioned=self.option.preconditioned)
+        return Evaluation(
+            translation=shift,
+            rotation=step,
+            rotation_gradient=local.gradient,
+            correlation=local.value,
+            translation_peak=peak.peak,
+            cost_translation=cost_t,
+            cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
+        )
+
+    def increments(self, evaluation: Evaluation) -> tuple[NDArray, NDArray]:
+        """Apply the gains: ``(exp(lambda_r hat(step)), lambda_t grad_glob T)``.
+
+        The rotation increment is capped at ``option.max_rotation_step`` radians.
+        """
+        w = self.option.lambda_r * evaluation.rotation
+        angle = float(np.linalg.norm(w))
+        if angle > self.option.max_rotation_step:
+            w *= self.option.max_rotation_step / angle
+        return so3.exp(w), self.option.lambda_t * evaluation.translation
+
+    def advance(self, evaluation: Evaluation) -> bool:
+        """Move to the next finer smoothing level once the rotation step is small.
+
+        Returns True when it moved.
+        """
+        small = np.linalg.norm(evaluation.rotation) < self.option.smoothing_switch
+        if small and self.level < self.levels - 1:
+            self.level += 1
+            return True
+        return False
+
+    def step(self, cloud: object) -> Step:
+        """One control cycle for a freshly captured cloud (paper, Algorithm 1, loop body).
+
+        Uses the current smoothing level (:attr:`level`) and moves to the next finer
+        one once the rotation step is small; :meth:`reset` starts again.
+
+        Parameters
+        ----------
+        cloud : PointCloud, tensor PointCloud or ndarray (N, 3) / (N, 6)
+            The current cloud, in the same frame as the fixed one; not modified.
+
+        Returns
+        -------
+        Step
+        """
+        moving = self.moving(cloud, "cloud")
+        evaluation = self.evaluate(moving, level=self.level)
+        self.advance(evaluation)
+        delta_rotation, delta_translation = self.increments(evaluation)
+        return Step(delta_rotation, delta_translation, moving.centroid, evaluation)

@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from o3d_spectral import egi, harmonics, wigner
+
+
+def test_histogram_counts_every_normal(rng):
+    normals = rng.normal(size=(1000, 3))
+    hist = egi.histogram(normals, 8)
+    assert hist.shape == (16, 16) and hist.sum() == 1000
+
+
+def test_histogram_bins_on_the_paper_grid():
+    B = 4
+    centres = egi.grid_points(B)
+    hist = egi.histogram(centres.reshape(-1, 3), B)
+    np.testing.assert_array_equal(hist, np.ones((2 * B, 2 * B)))
+
+
+def test_binned_equals_projection_of_bin_centres(rng):
+    """The paper's histogram is the exact EGI with every normal moved to its bin centre."""
+    B = 8
+    normals = rng.normal(size=(500, 3))
+    hist = egi.histogram(normals, B)
+    centres = egi.grid_points(B).reshape(-1, 3)
+    expected = harmonics.project(centres, hist.ravel(), B)
+    np.testing.assert_allclose(egi.coefficients(normals, B, binned=True), expected, atol=1e-10)
+
+
+def test_direct_coefficients_rotate_exactly(rng):
+    B = 12
+    normals = rng.normal(size=(300, 3))
+    R = Rotation.random(random_state=2).as_matrix()
+    np.testing.assert_allclose(egi.coefficients(normals @ R.T, B),
+                               wigner.rotate_coefficients(egi.coefficients(normals, B), R),
+                               atol=1e-10)
+
+
+def test_smoothing_is_a_heat_kernel(rng):
+    F = rng.normal(size=(6, 11))
+    S = egi.smooth(F, 0.2)
+    l = np.arange(6)  # noqa: E741
+    np.testing.assert_allclose(S / F, np.exp(-0.5 * l * (l + 1) * 0.04)[:, None] * np.ones((1, 11)))
+    np.testing.assert_array_equal(egi.smooth(F, 0.0), F)
+
+
+def test_normalise(rng):
+    F = egi.normalise(egi.coefficients(rng.normal(size=(50, 3)), 6))
+    assert np.linalg.norm(F) == pytest.approx(1.0)
+    assert np.all(F[0] == 0)
+    with pytest.raises(ValueError, match="no rotation information"):
+        egi.normalise(np.eye(6, 11) * [[1]] * (np.arange(6)[:, None] == 0))

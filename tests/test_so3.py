@@ -1,0 +1,55 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from o3d_spectral import so3
+
+
+def test_hat_is_cross_product(rng):
+    w, v = rng.normal(size=3), rng.normal(size=3)
+    np.testing.assert_allclose(so3.hat(w) @ v, np.cross(w, v), atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_exp_log_round_trip(seed):
+    R = Rotation.random(random_state=seed).as_matrix()
+    np.testing.assert_allclose(so3.exp(so3.log(R)), R, atol=1e-10)
+    np.testing.assert_allclose(so3.exp(so3.log(R)), Rotation.from_rotvec(so3.log(R)).as_matrix())
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1.0, np.pi - 1e-3, np.pi - 1e-7, np.pi])
+def test_log_near_identity_and_half_turn(angle):
+    axis = np.array([0.6, 0.0, 0.8])
+    R = so3.exp(angle * axis)
+    w = so3.log(R)
+    assert np.linalg.norm(w) == pytest.approx(angle, abs=1e-7)
+    np.testing.assert_allclose(so3.exp(w), R, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_euler_zyz_round_trip(seed):
+    R = Rotation.random(random_state=seed).as_matrix()
+    alpha, beta, gamma = so3.euler_zyz(R)
+    assert 0.0 <= beta <= np.pi
+    np.testing.assert_allclose(so3.from_euler_zyz(alpha, beta, gamma), R, atol=1e-12)
+    # scipy's intrinsic "ZYZ" is the same convention: R = Rz(a) Ry(b) Rz(g)
+    np.testing.assert_allclose(
+        Rotation.from_euler("ZYZ", [alpha, beta, gamma]).as_matrix(), R, atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("beta", [0.0, np.pi])
+def test_euler_zyz_gimbal_lock(beta):
+    R = so3.from_euler_zyz(0.7, beta, -0.2)
+    np.testing.assert_allclose(so3.from_euler_zyz(*so3.euler_zyz(R)), R, atol=1e-12)
+
+
+def test_is_rotation_and_projection(rng):
+    R = Rotation.random(random_state=1).as_matrix()
+    assert so3.is_rotation(R)
+    assert not so3.is_rotation(-R)
+    assert not so3.is_rotation(2 * R)
+    noisy = R + 1e-4 * rng.normal(size=(3, 3))
+    P = so3.project_to_rotation(noisy)
+    assert so3.is_rotation(P, atol=1e-12)
+    assert np.linalg.norm(P - R) < 1e-3
