@@ -128,11 +128,14 @@ class PreparedCloud:
     ----------
     points : ndarray, shape (M, 3)
         One point per occupied voxel of ``voxel_size`` (the voxel grid's input), metres.
+    point_normals : ndarray, shape (M, 3)
+        Mean normal in each voxel (unit, or zero where opposite normals cancel).
     normals : ndarray, shape (K, 3)
         Unit normals, the EGI's input (each counts once).
     """
 
     points: NDArray[np.float64]
+    point_normals: NDArray[np.float64]
     normals: NDArray[np.float64]
 
 
@@ -184,9 +187,13 @@ def prepare(
         When fewer than :data:`MIN_POINTS` voxels are occupied, or the points are
         (nearly) collinear.
     """
-    cell = egi_voxel_size or voxel_size / 4.0
-    fine = to_legacy(CloudArrays(arrays.points, None)).voxel_down_sample(cell)
-    points = np.asarray(fine.voxel_down_sample(voxel_size).points).copy()
+    fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
+    if arrays.normals is None and len(fine.points) >= MIN_POINTS:
+        radius = 2.5 * voxel_size if normal_radius is None else normal_radius
+        fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
+        _orient(fine, camera_location)
+    coarse = fine.voxel_down_sample(voxel_size)
+    points = np.asarray(coarse.points).copy()
     if len(points) < MIN_POINTS:
         raise ValueError(
             f"{name} occupies {len(points)} voxels of {voxel_size} m; the method needs "
@@ -195,17 +202,16 @@ def prepare(
     spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
     if spread[1] < 1e-3 * spread[0] or spread[1] < 0.5 * voxel_size:
         raise ValueError(f"{name} is degenerate: its points lie (nearly) on a line")
-    if arrays.normals is None:
-        radius = 2.5 * voxel_size if normal_radius is None else normal_radius
-        fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
-        _orient(fine, camera_location)
-        normals = np.asarray(fine.normals)
-    else:
-        normals = arrays.normals
+    point_normals = np.asarray(coarse.normals)
+    lengths = np.linalg.norm(point_normals, axis=1, keepdims=True)
+    point_normals = np.divide(
+        point_normals, lengths, out=np.zeros_like(point_normals), where=lengths > 1e-6
+    )
+    normals = np.asarray(fine.normals) if arrays.normals is None else arrays.normals
     length = np.linalg.norm(normals, axis=1)
     keep = np.flatnonzero(length > 1e-6)
     if len(keep) < MIN_POINTS:
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
     if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)
         keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
-    return PreparedCloud(points, normals[keep] / length[keep, None])
+    return PreparedCloud(points, point_normals, normals[keep] / length[keep, None])

@@ -59,6 +59,12 @@ class SpectralRegistrationOption:
         ``2.5 * voxel_size`` when None.
     camera_location : tuple of 3 float or None
         Where the sensor was (in the clouds' frame), to orient estimated normals.
+    target_viewpoint : "auto", tuple of 3 float, or None
+        Where the sensor that saw the target was (metres, target frame). When set, only
+        the source points whose normals face it at the current pose take part (back-face
+        culling), so that the back of a model is not matched against a one-sided scan.
+        ``"auto"``: the origin, when at least 90% of the target's normals face it (a
+        single view in its sensor's frame); None: never cull.
     max_grid_memory : float
         Largest memory (bytes) the voxel grids and their FFTs may take.
     fft_planning : {"estimate", "measure"}
@@ -80,6 +86,7 @@ class SpectralRegistrationOption:
     max_correspondence_distance: float | None = None
     normal_radius: float | None = None
     camera_location: tuple[float, float, float] | None = None
+    target_viewpoint: str | tuple[float, float, float] | None = "auto"
     max_grid_memory: float = 2.0 * 2**30
     fft_planning: str = "estimate"
 
@@ -97,6 +104,10 @@ class SpectralRegistrationOption:
         for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if isinstance(self.target_viewpoint, str) and self.target_viewpoint != "auto":
+            raise ValueError(
+                f"target_viewpoint must be 'auto', a point or None, got {self.target_viewpoint!r}"
+            )
         if self.fft_planning not in ("estimate", "measure"):
             raise ValueError(
                 f"fft_planning must be 'estimate' or 'measure', got {self.fft_planning!r}"

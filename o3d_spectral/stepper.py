@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
-from .cloud import PreparedCloud, as_arrays, prepare
+from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import normalise, smooth
 from .fft import RealFFT3, fft_plan, next_fast_len
@@ -44,6 +44,8 @@ class MovingCloud:
     ----------
     points : ndarray, shape (M, 3)
         Down-sampled points (metres), one per voxel.
+    point_normals : ndarray, shape (M, 3)
+        Their mean normals (unit, or zero), for the visibility test.
     centroid : ndarray, shape (3,)
         Pivot of the rotation, metres.
     radius : float
@@ -53,6 +55,7 @@ class MovingCloud:
     """
 
     points: NDArray[np.float64]
+    point_normals: NDArray[np.float64]
     centroid: NDArray[np.float64]
     radius: float
     coefficients: NDArray[np.float64]
@@ -165,7 +168,20 @@ class SpectralStepper:
         raw = self._egi(prepared.normals)
         self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         self.target_points = points
+        self.viewpoint = self._viewpoint(prepared)
         self.level = 0
+
+    def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
+        """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
+        choice = self.option.target_viewpoint
+        if choice is None:
+            return None
+        if not isinstance(choice, str):
+            return np.asarray(choice, dtype=np.float64)
+        sensor = np.zeros(3)
+        has_normal = np.any(target.point_normals != 0.0, axis=1)
+        facing = np.einsum("ij,ij->i", target.point_normals, sensor - target.points) > 0.0
+        return sensor if facing[has_normal].mean() >= 0.9 else None
 
     @property
     def levels(self) -> int:
@@ -194,8 +210,12 @@ class SpectralStepper:
             name=name,
         )
 
-    def _egi(self, normals: NDArray[np.float64]) -> NDArray[np.float64]:
-        return egi_coefficients(normals, self.option.bandwidth, binned=self.option.egi_binned)
+    def _egi(
+        self, normals: NDArray[np.float64], weights: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64]:
+        return egi_coefficients(
+            normals, self.option.bandwidth, weights=weights, binned=self.option.egi_binned
+        )
 
     def _smooth(self, raw: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return normalise(smooth(raw, self.option.egi_smoothing[level]))
@@ -216,13 +236,14 @@ class SpectralStepper:
             cloud's own frame first).
         """
         prepared = self._prepare(cloud, name)
-        points, normals = prepared.points, prepared.normals
+        points, point_normals, normals = prepared.points, prepared.point_normals, prepared.normals
         if transformation is not None:
             M = np.asarray(transformation, dtype=np.float64)
-            points, normals = points @ M[:3, :3].T + M[:3, 3], normals @ M[:3, :3].T
+            points = points @ M[:3, :3].T + M[:3, 3]
+            point_normals, normals = point_normals @ M[:3, :3].T, normals @ M[:3, :3].T
         centroid = points.mean(axis=0)
         radius = float(np.max(np.linalg.norm(points - centroid, axis=1)))
-        return MovingCloud(points, centroid, radius, self._egi(normals))
+        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals))
 
     # -- translation -------------------------------------------------------------------
     def _moving_box(self, moving: MovingCloud, centre: NDArray[np.float64]) -> Box:
@@ -283,8 +304,18 @@ class SpectralStepper:
         R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         T = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
         centre = moving.centroid + T
-        # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
         moved = (moving.points - moving.centroid) @ R.T + centre
+        raw_egi = moving.coefficients
+        if self.viewpoint is not None:  # the target is one view: keep what faces its sensor
+            rays = self.viewpoint - moved
+            cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
+            cosine /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
+            facing = cosine > 0.0
+            if facing.sum() >= MIN_POINTS:
+                moved = moved[facing]
+                # A sensor samples a surface in proportion to its projected area: cos(incidence).
+                raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
+        # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
         box = self._moving_box(moving, centre)
         fft, G = self._fft(box)
         buffer = np.zeros(fft.shape)
@@ -300,7 +331,7 @@ class SpectralStepper:
             buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box
         )
         # Rotation: gradient of the EGI correlation, scaled to an angle.
-        F, G = self._smooth(moving.coefficients, level), self.target_coefficients[level]
+        F, G = self._smooth(raw_egi, level), self.target_coefficients[level]
         local = gradient(F, G, R)
         scale = curvature_scale(F, G)
         step = rotation_step(local, scale, preconditioned=self.option.preconditioned)
