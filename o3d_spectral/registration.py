@@ -24,10 +24,12 @@ class IterationRecord:
     Attributes
     ----------
     iteration : int
+    transformation : ndarray, shape (4, 4)
+        Source-to-target estimate at the start of the iteration (``init`` included).
     rotation : ndarray, shape (3, 3)
-        ``R`` at the start of the iteration.
+        The law's ``R`` at the start of the iteration (about the source's centroid).
     translation : ndarray, shape (3,)
-        ``T`` at the start of the iteration, metres.
+        The law's ``T`` at the start of the iteration, metres.
     cost_translation, cost_rotation : float
         ``J_t``, ``J_r`` at that pose.
     translation_gradient_norm : float
@@ -44,6 +46,7 @@ class IterationRecord:
     """
 
     iteration: int
+    transformation: NDArray[np.float64]
     rotation: NDArray[np.float64]
     translation: NDArray[np.float64]
     cost_translation: float
@@ -194,9 +197,17 @@ def registration_spectral(
         r_norm = float(np.linalg.norm(evaluation.rotation))
         result.history.append(
             IterationRecord(
-                iteration, pose.R.copy(), pose.T.copy(), evaluation.cost_translation,
-                evaluation.cost_rotation, t_norm, r_norm, evaluation.correlation,
-                evaluation.translation_peak, time.perf_counter() - start,
+                iteration=iteration,
+                transformation=pose.matrix() @ init,
+                rotation=pose.R.copy(),
+                translation=pose.T.copy(),
+                cost_translation=evaluation.cost_translation,
+                cost_rotation=evaluation.cost_rotation,
+                translation_gradient_norm=t_norm,
+                rotation_gradient_norm=r_norm,
+                correlation=evaluation.correlation,
+                translation_peak=evaluation.translation_peak,
+                time=time.perf_counter() - start,
             )
         )
         result.translation_peak = evaluation.translation_peak
