@@ -159,6 +159,12 @@ class Instance:
         return self.metadata["object"]
 
     @property
+    def source_center(self) -> np.ndarray:
+        """Centroid of the source points (m), shape (3,): where translation errors are
+        measured (:func:`o3d_spectral.symmetry.translation_error`'s ``center``)."""
+        return np.asarray(self.source.points).mean(axis=0)
+
+    @property
     def symmetry(self) -> Symmetry:
         """Symmetry group of the object, expressed in the source frame."""
         return model_symmetry(self.object).transformed(self.source_from_model)

@@ -232,9 +232,31 @@ def rotation_error(T_est: np.ndarray, T_gt: np.ndarray) -> float:
     return _angle_from_trace(np.trace(r_gt.T @ r_est))
 
 
-def translation_error(T_est: np.ndarray, T_gt: np.ndarray) -> float:
-    """Euclidean distance (m) between the translations of two 4x4 transforms."""
-    t_est, t_gt = _as_transform(T_est, "T_est"), _as_transform(T_gt, "T_gt")
+def _shifted(transform: np.ndarray, center: np.ndarray | None) -> np.ndarray:
+    """``transform @ Tr(center)``: the motion seen from a source frame centred on ``center``."""
+    if center is None:
+        return transform
+    shift = np.eye(4)
+    shift[:3, 3] = np.asarray(center, dtype=np.float64).reshape(3)
+    return transform @ shift
+
+
+def translation_error(
+    T_est: np.ndarray, T_gt: np.ndarray, *, center: np.ndarray | None = None
+) -> float:
+    """Distance (m) between where two 4x4 transforms put the source point ``center``.
+
+    Parameters
+    ----------
+    T_est, T_gt : ndarray, shape (4, 4)
+    center : ndarray, shape (3,), optional
+        Source point (m) at which the error is measured; the source frame's origin when
+        omitted (the difference of the translations). The object's centroid makes the
+        error independent of where the source frame's origin lies: far from the object,
+        the origin turns every rotation error into a large translation error.
+    """
+    t_est = _shifted(_as_transform(T_est, "T_est"), center)
+    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
     return float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
 
 
@@ -271,15 +293,22 @@ def symmetric_rotation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symm
     return _angle_from_trace(best)
 
 
-def symmetric_translation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symmetry) -> float:
-    """``min_S translation_error(T_est, T_gt @ S)`` over the symmetry group (m).
+def symmetric_translation_error(
+    T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symmetry, *, center: np.ndarray | None = None
+) -> float:
+    """``min_S translation_error(T_est, T_gt @ S, center=center)`` over the symmetry group (m).
 
     The minimum over a continuous axis is exact: the translation of ``T_gt @ C(theta) @ D``
     runs on a circle about the axis, and the closest point of a circle is found in closed
-    form. Note that translations depend on where the source frame's origin is; for a
-    frame-independent distance use :func:`mssd`.
+    form. Translations depend on where the source frame's origin is: pass the object's
+    centroid as ``center`` (see :func:`translation_error`), or use :func:`mssd`.
     """
-    t_est, t_gt = _as_transform(T_est, "T_est"), _as_transform(T_gt, "T_gt")
+    if center is not None:
+        back = np.eye(4)
+        back[:3, 3] = -np.asarray(center, dtype=np.float64).reshape(3)
+        symmetry = symmetry.transformed(back)
+    t_est = _shifted(_as_transform(T_est, "T_est"), center)
+    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
     # In the source frame: translation(T_gt @ C @ D) = t_gt + R_gt (c + R_C (t_D - c)).
     w = t_gt[:3, :3].T @ (t_est[:3, 3] - t_gt[:3, 3]) - symmetry.center
     best = np.inf

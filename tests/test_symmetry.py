@@ -101,3 +101,22 @@ def test_trivial_symmetry_gives_plain_errors():
 def test_unknown_model_is_rejected():
     with pytest.raises(ValueError, match="unknown model"):
         model_symmetry("teapot")
+
+
+def test_translation_error_at_a_centre_ignores_the_lever_arm():
+    """A rotation about the object's centroid moves the centroid nowhere: zero error there,
+    though the source frame's origin (1 m away) moves by 2 sin(angle/2) m."""
+    from o3d_spectral import so3
+
+    center = np.array([0.0, 0.0, 1.0])
+    T_gt = np.eye(4)
+    T_gt[:3, 3] = [0.1, 0.2, 0.3]
+    turn = np.eye(4)
+    turn[:3, :3] = so3.exp([0.0, 0.05, 0.0])
+    turn[:3, 3] = center - turn[:3, :3] @ center
+    T_est = T_gt @ turn
+    assert translation_error(T_est, T_gt) == pytest.approx(2 * np.sin(0.025))
+    assert translation_error(T_est, T_gt, center=center) == pytest.approx(0.0, abs=1e-15)
+    assert symmetric_translation_error(T_est, T_gt, Symmetry(), center=center) == pytest.approx(
+        0.0, abs=1e-15
+    )
