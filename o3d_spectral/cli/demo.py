@@ -1,0 +1,83 @@
+"""``o3d-spectral demo``: register a bundled object to a moved partial view of itself."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "demo",
+        help="register a bundled object to a moved, noisy partial view of itself",
+        description="Builds a partial depth-camera view of a bundled YCB object moved by a "
+        "random rotation, registers the full model to it, prints the errors and the time, "
+        "and writes the convergence plot (the paper's Fig. 2).",
+        epilog="example: o3d-spectral demo --object mug --seed 3 --out out/demo",
+    )
+    parser.add_argument("--object", default="mustard_bottle", help="bundled model name")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--max-angle", type=float, default=30.0,
+                        help="largest initial rotation, degrees (the law is local)")
+    parser.add_argument("--voxel-size", type=float, default=0.008, help="metres")
+    parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import o3d_spectral
+    from o3d_spectral import plots, scenes, symmetry
+
+    if not 0 <= args.max_angle <= 180:
+        raise ValueError(f"--max-angle must be in [0, 180] degrees, got {args.max_angle}")
+    options = scenes.SceneOptions(angle_range=(0.0, np.deg2rad(args.max_angle)), max_offset=0.05)
+    instance = scenes.make_instance(
+        "partial", args.object, rng=np.random.default_rng(args.seed), options=options
+    )
+    result = o3d_spectral.registration_spectral(instance.source, instance.target, args.voxel_size)
+    T_gt, T, center = instance.T_gt, result.transformation, instance.source_center
+    errors = {  # translation errors at the object's centroid
+        "rotation_error_deg": symmetry.rotation_error(T, T_gt),
+        "translation_error_m": symmetry.translation_error(T, T_gt, center=center),
+        "symmetric_rotation_error_deg": symmetry.symmetric_rotation_error(
+            T, T_gt, instance.symmetry
+        ),
+        "symmetric_translation_error_m": symmetry.symmetric_translation_error(
+            T, T_gt, instance.symmetry, center=center
+        ),
+    }
+    args.out.mkdir(parents=True, exist_ok=True)
+    figure = plots.plot_convergence(
+        result.history, args.out / "convergence.png", ground_truth=T_gt, center=center,
+        title=f"{args.object}: full model to a partial view "
+        f"({instance.metadata['init_angle_deg']:.0f} deg initial rotation)",
+    )
+    summary = {
+        "config": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
+                   if k != "func"},
+        "initial_rotation_deg": instance.metadata["init_angle_deg"],
+        **errors,
+        "converged": result.converged,
+        "num_iterations": result.num_iterations,
+        "run_time_s": result.run_time,
+        "ms_per_iteration": 1000 * result.history[-1].time / result.num_iterations,
+        "fitness": result.fitness,
+        "transformation": result.transformation.tolist(),
+        "ground_truth": T_gt.tolist(),
+    }
+    (args.out / "result.json").write_text(json.dumps(summary, indent=2))
+    print(
+        f"{args.object}: initial rotation {summary['initial_rotation_deg']:.1f} deg, "
+        f"partial view of {len(instance.target.points)} points\n"
+        f"rotation error    {errors['rotation_error_deg']:.2f} deg "
+        f"(symmetry-aware {errors['symmetric_rotation_error_deg']:.2f})\n"
+        f"translation error {1000 * errors['translation_error_m']:.1f} mm at the centroid "
+        f"(symmetry-aware {1000 * errors['symmetric_translation_error_m']:.1f})\n"
+        f"{result.num_iterations} iterations, converged {result.converged}, "
+        f"{result.run_time:.3f} s ({summary['ms_per_iteration']:.1f} ms/iteration)\n"
+        f"wrote {figure} and {args.out / 'result.json'}"
+    )
+    return 0
