@@ -12,7 +12,10 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "MIN_POINTS"]
+__all__ = [
+    "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
+    "MIN_POINTS",
+]
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
 MIN_POINTS = 10
@@ -101,19 +104,51 @@ def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
     return cloud
 
 
-def _orient(cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None) -> None:
+def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> bool:
+    """Whether ``points`` look like one depth image taken from ``viewpoint``.
+
+    A sensor sees one surface per ray; a model (or a fusion of views) has surfaces behind
+    surfaces. Rays are binned half a voxel wide at the cloud's median distance; the cloud
+    is a depth map when fewer than 10% of the bins holding two points or more hold depths
+    more than 3 voxels apart.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Metres.
+    viewpoint : array_like, shape (3,)
+        Metres.
+    voxel_size : float
+        Metres.
+    """
+    rays = np.asarray(points, dtype=np.float64) - np.asarray(viewpoint, dtype=np.float64)
+    depth = np.linalg.norm(rays, axis=1)
+    rays, depth = rays[depth > 0], depth[depth > 0]
+    step = 0.5 * voxel_size / np.median(depth)  # bin width, radians
+    theta = np.arccos(np.clip(rays[:, 2] / depth, -1.0, 1.0))
+    phi = np.arctan2(rays[:, 1], rays[:, 0]) + np.pi
+    row = np.floor(theta / step).astype(np.int64)
+    per_row = np.maximum(np.floor(2 * np.pi * np.sin((row + 0.5) * step) / step), 1.0)
+    key = row * (2 * int(np.ceil(2 * np.pi / step)) + 2) + np.floor(phi / (2 * np.pi) * per_row)
+    order = np.argsort(key, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(key[order]) != 0])
+    spread = np.maximum.reduceat(depth[order], starts) - np.minimum.reduceat(depth[order], starts)
+    shared = np.diff(np.r_[starts, len(order)]) >= 2
+    return bool(shared.any() and np.mean(spread[shared] > 3.0 * voxel_size) < 0.1)
+
+
+def _orient(
+    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float
+) -> None:
     """Orient estimated normals in place (on our own copy)."""
     points = np.asarray(cloud.points)
-    if camera_location is None:
-        lower, upper = points.min(axis=0), points.max(axis=0)
-        margin = 0.1 * (upper - lower)
-        origin_inside = bool(np.all(lower - margin <= 0.0) and np.all(0.0 <= upper + margin))
-        if not origin_inside:  # a scan in its sensor's frame: the sensor is at the origin
-            camera_location = np.zeros(3)
+    origin_outside = np.any(points.min(axis=0) > 0.0) or np.any(points.max(axis=0) < 0.0)
+    if camera_location is None and origin_outside and is_depth_map(points, [0, 0, 0], voxel_size):
+        camera_location = np.zeros(3)  # a scan in its sensor's frame
     if camera_location is not None:
         cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
         return
-    # A model in its own frame: propagate one orientation, then point it outward.
+    # A model: propagate one orientation along the surface, then point it outward.
     cloud.orient_normals_consistent_tangent_plane(10)
     normals = np.asarray(cloud.normals)
     if np.sum(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
@@ -139,6 +174,18 @@ class PreparedCloud:
     normals: NDArray[np.float64]
 
 
+def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> None:
+    """Enough occupied voxels, and not all on one line."""
+    if len(points) < MIN_POINTS:
+        raise ValueError(
+            f"{name} occupies {len(points)} voxels of {voxel_size} m; the method needs "
+            f"at least {MIN_POINTS}: use a smaller voxel_size or a denser cloud"
+        )
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if spread[1] < 1e-3 * spread[0] or spread[1] < 0.5 * voxel_size:
+        raise ValueError(f"{name} is degenerate: its points lie (nearly) on a line")
+
+
 def prepare(
     arrays: CloudArrays,
     voxel_size: float,
@@ -155,11 +202,11 @@ def prepare(
     of a cloud is exactly the rotated EGI (every point counts once: down-sample a cloud
     of very uneven density first). When the cloud has no normals they are estimated on
     the cloud averaged per cell of ``egi_voxel_size`` (PCA over ``normal_radius``, 30
-    neighbours at most) and oriented: towards ``camera_location``
-    when given; otherwise towards the origin when the origin lies outside the cloud (a
-    scan in its sensor's frame), else consistently along the surface and outward from the
-    centroid (a model in its own frame). The voxel grid's points are the cloud averaged
-    per voxel of ``voxel_size``.
+    neighbours at most) and oriented: towards ``camera_location`` when given; otherwise
+    towards the origin when the cloud is a depth map seen from an origin outside it (a scan
+    in its sensor's frame, :func:`is_depth_map`), else consistently along the surface and
+    outward from the centroid (a model; pass ``camera_location`` for a 360-degree scan).
+    The voxel grid's points are the cloud averaged per voxel of ``voxel_size``.
 
     Parameters
     ----------
@@ -188,20 +235,13 @@ def prepare(
         (nearly) collinear.
     """
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
-    if arrays.normals is None and len(fine.points) >= MIN_POINTS:
+    _check_shape(np.asarray(fine.voxel_down_sample(voxel_size).points), voxel_size, name)
+    if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
-        _orient(fine, camera_location)
+        _orient(fine, camera_location, voxel_size)
     coarse = fine.voxel_down_sample(voxel_size)
     points = np.asarray(coarse.points).copy()
-    if len(points) < MIN_POINTS:
-        raise ValueError(
-            f"{name} occupies {len(points)} voxels of {voxel_size} m; the method needs "
-            f"at least {MIN_POINTS}: use a smaller voxel_size or a denser cloud"
-        )
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    if spread[1] < 1e-3 * spread[0] or spread[1] < 0.5 * voxel_size:
-        raise ValueError(f"{name} is degenerate: its points lie (nearly) on a line")
     point_normals = np.asarray(coarse.normals)
     lengths = np.linalg.norm(point_normals, axis=1, keepdims=True)
     point_normals = np.divide(

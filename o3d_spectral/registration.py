@@ -143,8 +143,8 @@ def registration_spectral(
         Clouds in metres; numpy arrays of shape (N, 3), or (N, 6) with normals in the last
         three columns. Neither is modified. Normals are used when present; otherwise they
         are estimated (PCA, radius ``option.normal_radius``) and oriented towards
-        ``option.camera_location``, or towards the origin when the origin lies outside
-        the cloud (a scan in its sensor's frame), or outward (a model in its own frame).
+        ``option.camera_location``, or towards the origin when the cloud is a depth map
+        seen from the origin (a scan in its sensor's frame), or outward (a model).
         Given normals must be consistently oriented (outward for a model, towards the
         sensor for a scan).
     voxel_size : float
