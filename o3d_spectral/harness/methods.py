@@ -1,0 +1,243 @@
+"""Registration methods of the evaluation harness, registered by name.
+
+Every method has the signature ``(source, target, voxel_size, seed) -> (transformation,
+info)``:
+
+* ``source``, ``target``: ``open3d.geometry.PointCloud`` with normals, metres (not modified);
+* ``voxel_size``: the voxel edge (m) every method down-samples to;
+* ``seed``: the seed of the method's randomness (a method without any ignores it);
+* ``transformation``: 4x4 float64 source-to-target estimate;
+* ``info``: a dict with any of the keys in :data:`INFO_KEYS`.
+
+A new method is one decorated function::
+
+    @register_method("my_method")
+    def my_method(source, target, voxel_size, seed):
+        ...
+        return transformation, {"iterations": 12}
+
+and a new spectral variant one call to :func:`register_spectral_variant`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import open3d as o3d
+
+from o3d_spectral import (
+    SpectralConvergenceCriteria,
+    SpectralRegistrationOption,
+    registration_spectral,
+)
+
+__all__ = [
+    "INFO_KEYS",
+    "Method",
+    "get_method",
+    "method_names",
+    "register_method",
+    "register_spectral_variant",
+]
+
+Method = Callable[
+    [o3d.geometry.PointCloud, o3d.geometry.PointCloud, float, int], tuple[np.ndarray, dict]
+]
+
+#: What a method may report in its ``info`` dict: ``iterations`` (int), ``converged``
+#: (bool), ``translation_gradient_norm`` (m), ``rotation_gradient_norm`` (rad), both of the
+#: last iteration, and ``trajectory`` (ndarray (K, 4, 4): the estimate at the start of each
+#: iteration, turned into error curves by the runner).
+INFO_KEYS = (
+    "iterations",
+    "converged",
+    "translation_gradient_norm",
+    "rotation_gradient_norm",
+    "trajectory",
+)
+
+_REGISTRY: dict[str, Method] = {}
+
+_reg = o3d.pipelines.registration
+
+#: ICP from the identity: correspondences up to this many voxels away, at most this many
+#: iterations (Open3D's default 30 stops before a 10 cm offset is closed).
+ICP_DISTANCE_VOXELS = 5.0
+ICP_MAX_ITERATION = 100
+
+
+def register_method(name: str) -> Callable[[Method], Method]:
+    """Decorator registering a method under ``name`` (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is empty or already registered.
+    """
+    if not name or not name.isidentifier():
+        raise ValueError(f"name must be a non-empty identifier, got {name!r}")
+    if name in _REGISTRY:
+        raise ValueError(f"name {name!r} is already registered; pick another one")
+
+    def decorate(method: Method) -> Method:
+        _REGISTRY[name] = method
+        return method
+
+    return decorate
+
+
+def get_method(name: str) -> Method:
+    """The method registered under ``name``; ``ValueError`` listing the names if unknown."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ValueError(
+            f"method {name!r} is not registered; choose from {', '.join(method_names())}"
+        ) from None
+
+
+def method_names() -> tuple[str, ...]:
+    """Names of the registered methods, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def register_spectral_variant(
+    name: str,
+    *,
+    option: SpectralRegistrationOption | None = None,
+    criteria: SpectralConvergenceCriteria | None = None,
+) -> Method:
+    """Register ``registration_spectral`` from the identity with fixed settings as ``name``.
+
+    The method is deterministic and ignores its seed; its ``info`` holds every key of
+    :data:`INFO_KEYS`.
+    """
+
+    def spectral(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+        result = registration_spectral(source, target, voxel_size, option=option, criteria=criteria)
+        last = result.history[-1]
+        info = {
+            "iterations": result.num_iterations,
+            "converged": result.converged,
+            "translation_gradient_norm": last.translation_gradient_norm,
+            "rotation_gradient_norm": last.rotation_gradient_norm,
+            "trajectory": np.stack([record.transformation for record in result.history]),
+        }
+        return np.asarray(result.transformation), info
+
+    spectral.__doc__ = f"registration_spectral with option={option!r}, criteria={criteria!r}."
+    return register_method(name)(spectral)
+
+
+register_spectral_variant("spectral")
+register_spectral_variant(
+    "spectral_paper",
+    option=SpectralRegistrationOption(
+        voxel_weighting="binary",
+        egi_binned=True,
+        preconditioned=False,
+        egi_smoothing=(0.1,),
+        target_viewpoint=None,
+    ),
+)
+
+
+def _down_sampled(cloud: o3d.geometry.PointCloud, voxel_size: float) -> o3d.geometry.PointCloud:
+    """Voxel down-sampling keeping the given normals (re-normalised after averaging)."""
+    down = cloud.voxel_down_sample(voxel_size)
+    down.normalize_normals()
+    return down
+
+
+def _icp_from_identity(source, target, voxel_size: float, estimation) -> tuple[np.ndarray, dict]:
+    result = _reg.registration_icp(
+        _down_sampled(source, voxel_size),
+        _down_sampled(target, voxel_size),
+        ICP_DISTANCE_VOXELS * voxel_size,
+        np.eye(4),
+        estimation,
+        _reg.ICPConvergenceCriteria(max_iteration=ICP_MAX_ITERATION),
+    )
+    return np.asarray(result.transformation), {}
+
+
+@register_method("icp_point_to_point")
+def icp_point_to_point(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """Open3D point-to-point ICP from the identity on clouds down-sampled at the voxel size."""
+    return _icp_from_identity(
+        source, target, voxel_size, _reg.TransformationEstimationPointToPoint()
+    )
+
+
+@register_method("icp_point_to_plane")
+def icp_point_to_plane(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """Open3D point-to-plane ICP from the identity (the clouds' own normals)."""
+    return _icp_from_identity(
+        source, target, voxel_size, _reg.TransformationEstimationPointToPlane()
+    )
+
+
+def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float):
+    """The global-registration tutorial's features: down-sample at ``v``, normals with
+    radius ``2v``, FPFH with radius ``5v``."""
+    down = cloud.voxel_down_sample(voxel_size)
+    down.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * voxel_size, max_nn=30))
+    feature = _reg.compute_fpfh_feature(
+        down, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel_size, max_nn=100)
+    )
+    return down, feature
+
+
+def _refine(source, target, voxel_size: float, init: np.ndarray) -> np.ndarray:
+    """The tutorial's refinement: point-to-plane ICP at ``0.4 v`` on the full clouds."""
+    result = _reg.registration_icp(
+        source, target, 0.4 * voxel_size, init, _reg.TransformationEstimationPointToPlane()
+    )
+    return np.asarray(result.transformation)
+
+
+@register_method("fpfh_ransac")
+def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
+
+    Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
+    3-point samples, at most 100000 iterations at confidence 0.999.
+    """
+    source_down, source_fpfh = _fpfh(source, voxel_size)
+    target_down, target_fpfh = _fpfh(target, voxel_size)
+    distance = 1.5 * voxel_size
+    o3d.utility.random.seed(seed)
+    coarse = _reg.registration_ransac_based_on_feature_matching(
+        source_down,
+        target_down,
+        source_fpfh,
+        target_fpfh,
+        True,
+        distance,
+        _reg.TransformationEstimationPointToPoint(False),
+        3,
+        [
+            _reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+            _reg.CorrespondenceCheckerBasedOnDistance(distance),
+        ],
+        _reg.RANSACConvergenceCriteria(100000, 0.999),
+    )
+    return _refine(source, target, voxel_size, coarse.transformation), {}
+
+
+@register_method("fgr")
+def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """Open3D Fast Global Registration on the tutorial's FPFH features (distance
+    ``0.5 v``), then the same point-to-plane ICP refinement."""
+    source_down, source_fpfh = _fpfh(source, voxel_size)
+    target_down, target_fpfh = _fpfh(target, voxel_size)
+    o3d.utility.random.seed(seed)
+    coarse = _reg.registration_fgr_based_on_feature_matching(
+        source_down,
+        target_down,
+        source_fpfh,
+        target_fpfh,
+        _reg.FastGlobalRegistrationOption(maximum_correspondence_distance=0.5 * voxel_size),
+    )
+    return _refine(source, target, voxel_size, coarse.transformation), {}

@@ -1,0 +1,395 @@
+"""The evaluation loop: every method on every instance of some suites, resumable.
+
+A run folder holds
+
+* ``config.json``: voxel size, seed, success thresholds, suites, methods, and one entry per
+  session (start, wall time, registrations done, workers, machine);
+* ``results.jsonl``: one JSON object per (instance, method), appended as soon as it is
+  done, so an interrupted run resumes where it stopped;
+* ``results.csv``: the same rows as a table (without the convergence curves), sorted by
+  suite, instance and method.
+
+Each registration runs in a worker process with one thread (``OMP_NUM_THREADS=1``), so
+results do not depend on the number of workers and times compare per core. A method's
+seed depends on the run seed, the suite (condition and seed), the instance and the method,
+never on the order of execution. Wall time is measured around the method call only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import functools
+import importlib
+import json
+import os
+import platform
+import time
+import zlib
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from o3d_spectral.harness._optional import require
+from o3d_spectral.harness.methods import get_method, method_names
+from o3d_spectral.harness.metrics import (
+    SuccessCriteria,
+    convergence_curves,
+    instance_metrics,
+    registration_fit,
+)
+from o3d_spectral.suite import Suite, load_suite
+
+__all__ = [
+    "CONFIG_FILE",
+    "CURVE_COLUMNS",
+    "RESULTS_FILE",
+    "TABLE_FILE",
+    "load_results",
+    "run_eval",
+    "task_seed",
+]
+
+CONFIG_FILE = "config.json"
+RESULTS_FILE = "results.jsonl"
+TABLE_FILE = "results.csv"
+#: Per-iteration symmetry-aware errors of iterative methods (lists; not in the CSV table).
+CURVE_COLUMNS = ("curve_rotation_deg", "curve_translation_m")
+_KEY = ("suite", "index", "method")
+_METADATA = (
+    "condition",
+    "object",
+    "init_angle_deg",
+    "init_offset_m",
+    "visible_fraction",
+    "occlusion",
+)
+_SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@dataclass(frozen=True)
+class _Task:
+    suite_dir: str
+    suite: str
+    index: int
+    method: str
+    seed: int
+    voxel_size: float
+    criteria: SuccessCriteria
+
+
+def task_seed(seed: int, condition: str, suite_seed: int, index: int, method: str) -> int:
+    """Seed of one registration, in [0, 2**31): a hash of the run seed, the suite's
+    condition and seed, the instance index and the method name."""
+    words = [seed, suite_seed, index, zlib.crc32(condition.encode()), zlib.crc32(method.encode())]
+    return int(np.random.SeedSequence(words).generate_state(1)[0] & 0x7FFFFFFF)
+
+
+@functools.cache
+def _suite(suite_dir: str) -> Suite:
+    return load_suite(suite_dir)
+
+
+def _init_worker(plugins: tuple[str, ...]) -> None:
+    import open3d as o3d
+
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+    for module in plugins:
+        importlib.import_module(module)
+
+
+def _compact(values: Sequence[float]) -> list[float]:
+    return [float(f"{v:.6g}") for v in values]
+
+
+def _run_task(task: _Task) -> dict:
+    """Run one method on one instance (in a worker) and return its results row."""
+    instance = _suite(task.suite_dir)[task.index]
+    method = get_method(task.method)
+    start = time.perf_counter()
+    try:
+        transformation, info = method(instance.source, instance.target, task.voxel_size, task.seed)
+        error = None
+    except Exception as exc:  # a failing method is a failed instance, not a failed run
+        transformation, info, error = None, {}, f"{type(exc).__name__}: {exc}"
+    seconds = time.perf_counter() - start
+    row = {"suite": task.suite, "index": task.index, "method": task.method}
+    row |= {key: instance.metadata.get(key) for key in _METADATA}
+    row |= {"seed": task.seed, "time_s": seconds, "error": error}
+    if transformation is None:
+        row["success"] = False
+        return row
+    row |= instance_metrics(transformation, instance, criteria=task.criteria)
+    row["fitness"], row["inlier_rmse"] = registration_fit(
+        transformation, instance, distance=task.voxel_size
+    )
+    row |= {
+        "iterations": info.get("iterations"),
+        "converged": info.get("converged"),
+        "translation_gradient_norm_m": info.get("translation_gradient_norm"),
+        "rotation_gradient_norm_rad": info.get("rotation_gradient_norm"),
+        "transformation": np.asarray(transformation).tolist(),
+    }
+    if info.get("trajectory") is not None:
+        rotation, translation = convergence_curves(info["trajectory"], instance)
+        row[CURVE_COLUMNS[0]], row[CURVE_COLUMNS[1]] = _compact(rotation), _compact(translation)
+    return row
+
+
+def _machine() -> dict:
+    import open3d as o3d
+
+    import o3d_spectral
+
+    cpu = platform.processor()
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "memory_gib": round(memory, 1),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "open3d": o3d.__version__,
+        "numpy": np.__version__,
+        "o3d_spectral": o3d_spectral.__version__,
+    }
+
+
+def _suite_name(suite: Suite) -> str:
+    return suite.root.resolve().name
+
+
+def _prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list[str]) -> dict:
+    """Read the run's config (checking that its settings match) or start a new one."""
+    path = out / CONFIG_FILE
+    if path.is_file():
+        config = json.loads(path.read_text())
+        for key, value in settings.items():
+            if config.get(key) != value:
+                raise ValueError(
+                    f"out {str(out)!r} holds a run with {key}={config.get(key)!r}, not "
+                    f"{value!r}; resume with the same settings or choose another --out"
+                )
+    else:
+        config = {**settings, "suites": [], "methods": [], "sessions": []}
+    known = {entry["name"] for entry in config["suites"]}
+    for suite in suites:
+        if _suite_name(suite) not in known:
+            config["suites"].append(
+                {
+                    "name": _suite_name(suite),
+                    "path": str(suite.root.resolve()),
+                    "condition": suite.condition,
+                    "n": len(suite),
+                    "seed": suite.manifest["seed"],
+                }
+            )
+    config["methods"] += [m for m in methods if m not in config["methods"]]
+    return config
+
+
+def _done(results: Path) -> set[tuple]:
+    if not results.is_file():
+        return set()
+    with results.open() as lines:
+        return {tuple(json.loads(line)[k] for k in _KEY) for line in lines if line.strip()}
+
+
+@contextlib.contextmanager
+def _single_threaded_children() -> Iterator[None]:
+    """Environment inherited by the worker processes started inside the block."""
+    saved = {name: os.environ.get(name) for name in _SINGLE_THREAD}
+    os.environ.update(dict.fromkeys(_SINGLE_THREAD, "1"))
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _tasks(
+    suites: list[Suite],
+    methods: list[str],
+    done: set,
+    *,
+    seed: int,
+    voxel_size: float,
+    criteria: SuccessCriteria,
+    limit: int | None,
+) -> list[_Task]:
+    tasks = []
+    for suite in suites:
+        name = _suite_name(suite)
+        for index in range(len(suite) if limit is None else min(limit, len(suite))):
+            condition = suite.manifest["instances"][index]["condition"]
+            for method in methods:
+                if (name, index, method) in done:
+                    continue
+                method_seed = task_seed(seed, condition, suite.manifest["seed"], index, method)
+                tasks.append(
+                    _Task(str(suite.root), name, index, method, method_seed, voxel_size, criteria)
+                )
+    return tasks
+
+
+def _execute(
+    tasks: list[_Task], *, workers: int, plugins: tuple[str, ...], progress: bool
+) -> Iterator[dict]:
+    """Results rows of ``tasks`` as they complete, from single-threaded worker processes."""
+    bar = require("tqdm").tqdm(total=len(tasks), desc="eval", unit="reg", disable=not progress)
+    with _single_threaded_children():
+        pool = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(plugins,),
+        )
+        try:
+            for future in as_completed([pool.submit(_run_task, task) for task in tasks]):
+                yield future.result()
+                bar.update()
+        finally:  # on an interrupt, drop the queued tasks instead of running them all
+            pool.shutdown(wait=True, cancel_futures=True)
+            bar.close()
+
+
+def run_eval(
+    suites: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    methods: Sequence[str] | None = None,
+    workers: int = 1,
+    voxel_size: float = 0.008,
+    seed: int = 0,
+    limit: int | None = None,
+    criteria: SuccessCriteria | None = None,
+    plugins: Sequence[str] = (),
+    progress: bool = True,
+) -> Path:
+    """Run ``methods`` on the instances of ``suites``; results go to ``out_dir``.
+
+    Pairs (instance, method) already in ``out_dir/results.jsonl`` are skipped, so calling
+    it again resumes an interrupted run, or adds methods or suites to a finished one.
+
+    Parameters
+    ----------
+    suites : sequence of str or Path
+        Suite folders (``make-suite`` output); their folder names must differ.
+    out_dir : str or Path
+        Run folder (created if missing).
+    methods : sequence of str, optional
+        Registered method names (:func:`~o3d_spectral.harness.methods.method_names`);
+        all when None.
+    workers : int, optional
+        Worker processes, each single-threaded; results do not depend on it.
+    voxel_size : float, optional
+        Voxel edge shared by all methods, metres (the paper's 8 mm by default).
+    seed : int, optional
+        Run seed, from which each registration's seed is derived (:func:`task_seed`).
+    limit : int, optional
+        Only the first ``limit`` instances of each suite (quick runs).
+    criteria : SuccessCriteria, optional
+        Success thresholds (5 degrees and 1 cm when None).
+    plugins : sequence of str, optional
+        Modules imported first (in every worker too), e.g. one registering more methods.
+    progress : bool, optional
+        Show a tqdm progress bar.
+
+    Returns
+    -------
+    Path
+        The per-instance table ``out_dir/results.csv``.
+    """
+    if not suites:
+        raise ValueError("suites must name at least one suite folder")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if not voxel_size > 0:
+        raise ValueError(f"voxel_size must be positive (metres), got {voxel_size}")
+    if limit is not None and limit < 1:
+        raise ValueError(f"limit must be >= 1, got {limit}")
+    for module in plugins:
+        importlib.import_module(module)
+    methods = list(method_names() if methods is None else methods)
+    for method in methods:
+        get_method(method)
+    loaded = [load_suite(path) for path in suites]
+    names = [_suite_name(suite) for suite in loaded]
+    if len(set(names)) != len(names):
+        raise ValueError(f"suites must have distinct folder names, got {names}")
+    criteria = criteria or SuccessCriteria()
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    settings = {"voxel_size": voxel_size, "seed": seed, "criteria": asdict(criteria)}
+    config = _prepare_config(out, loaded, settings, methods)
+    results = out / RESULTS_FILE
+    tasks = _tasks(
+        loaded,
+        methods,
+        _done(results),
+        seed=seed,
+        voxel_size=voxel_size,
+        criteria=criteria,
+        limit=limit,
+    )
+
+    (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
+    started, start = datetime.datetime.now().isoformat(timespec="seconds"), time.perf_counter()
+    done = 0
+    try:
+        with results.open("a") as sink:
+            for row in _execute(tasks, workers=workers, plugins=tuple(plugins), progress=progress):
+                sink.write(json.dumps(row) + "\n")
+                sink.flush()
+                done += 1
+    finally:  # an interrupted session still counts its time and registrations
+        config["sessions"].append(
+            {
+                "started": started,
+                "seconds": round(time.perf_counter() - start, 1),
+                "registrations": done,
+                "complete": done == len(tasks),
+                "workers": workers,
+                "machine": _machine(),
+            }
+        )
+        (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
+    table = out / TABLE_FILE
+    load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore").to_csv(
+        table, index=False
+    )
+    return table
+
+
+def load_results(path: str | Path):
+    """The rows of a run as a ``pandas.DataFrame``, sorted by suite, instance and method.
+
+    Parameters
+    ----------
+    path : str or Path
+        A run folder, or its ``results.jsonl``.
+    """
+    path = Path(path)
+    file = path / RESULTS_FILE if path.is_dir() else path
+    if not file.is_file():
+        raise FileNotFoundError(f"no {RESULTS_FILE} at {path}; run o3d-spectral eval first")
+    with file.open() as lines:  # json, not pandas' parser: floats stay exact
+        rows = [json.loads(line) for line in lines if line.strip()]
+    if not rows:
+        raise ValueError(f"{file} holds no results yet")
+    frame = require("pandas").DataFrame(rows)
+    frame = frame.drop_duplicates(subset=list(_KEY), keep="last")
+    return frame.sort_values(list(_KEY)).reset_index(drop=True)
