@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from o3d_spectral import so3
@@ -53,3 +55,15 @@ def test_is_rotation_and_projection(rng):
     P = so3.project_to_rotation(noisy)
     assert so3.is_rotation(P, atol=1e-12)
     assert np.linalg.norm(P - R) < 1e-3
+
+
+rotation_vectors = st.lists(
+    st.floats(-np.pi, np.pi, allow_nan=False, allow_infinity=False), min_size=3, max_size=3
+).filter(lambda w: np.linalg.norm(w) < np.pi - 1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rotation_vectors)
+def test_log_inverts_exp_inside_the_ball_of_radius_pi(w):
+    np.testing.assert_allclose(so3.log(so3.exp(w)), w, atol=1e-8)
+    assert so3.is_rotation(so3.exp(w), atol=1e-12)
