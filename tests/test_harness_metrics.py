@@ -1,0 +1,208 @@
+"""Harness metrics on hand-made cases with known answers, and the method registry."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+from numpy.testing import assert_allclose
+from scipy.spatial.transform import Rotation
+
+from o3d_spectral.harness import methods
+from o3d_spectral.harness.metrics import (
+    SuccessCriteria,
+    convergence_curves,
+    instance_metrics,
+    registration_fit,
+)
+from o3d_spectral.harness.runner import task_seed
+from o3d_spectral.scenes import Instance
+
+CENTER = np.array([0.3, -0.2, 0.8])  # the object sits far from the source frame's origin
+
+
+def _pose(rotvec, t, *, about=(0.0, 0.0, 0.0)):
+    """4x4 rotation by ``rotvec`` about the point ``about``, then translation by ``t``."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    about = np.asarray(about, dtype=float)
+    m[:3, 3] = np.asarray(t) + about - m[:3, :3] @ about
+    return m
+
+
+def _instance(name="banana", source_from_model=None):
+    rng = np.random.default_rng(0)
+    points = rng.normal(scale=0.03, size=(200, 3))
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points - points.mean(0) + CENTER))
+    return Instance(
+        source=cloud,
+        target=cloud,
+        T_gt=_pose([0.4, -1.1, 2.0], [0.05, 0.02, -0.03]),
+        target_labels=np.zeros(len(points), dtype=np.int64),
+        source_from_model=_pose([0.0, 0.0, 0.0], CENTER)
+        if source_from_model is None
+        else source_from_model,
+        metadata={"object": name},
+    )
+
+
+def test_exact_estimate_scores_zero():
+    inst = _instance()
+    m = instance_metrics(inst.T_gt, inst)
+    for key in (
+        "rotation_error_deg",
+        "translation_error_m",
+        "rotation_error_sym_deg",
+        "translation_error_sym_m",
+        "squared_translation_error_m2",
+        "squared_rotation_error_rad2",
+    ):
+        assert m[key] == pytest.approx(0.0, abs=1e-6), key
+    assert m["success"] is True
+
+
+def test_rotation_about_the_centroid_is_no_translation_error():
+    inst = _instance()
+    estimate = inst.T_gt @ _pose(
+        np.deg2rad(10.0) * np.array([0.0, 0.6, 0.8]), [0, 0, 0], about=CENTER
+    )
+    m = instance_metrics(estimate, inst)
+    assert_allclose(m["rotation_error_deg"], 10.0, atol=1e-9)
+    assert_allclose(m["rotation_error_sym_deg"], 10.0, atol=1e-9)
+    assert_allclose(m["translation_error_m"], 0.0, atol=1e-12)
+    assert_allclose(m["squared_rotation_error_rad2"], np.deg2rad(10.0) ** 2)
+    assert m["success"] is False
+    assert instance_metrics(estimate, inst, criteria=SuccessCriteria(max_rotation_deg=15))[
+        "success"
+    ]
+
+
+@pytest.mark.parametrize(("shift", "success"), [(0.02, False), (0.005, True)])
+def test_translation_error_and_success(shift, success):
+    inst = _instance()
+    estimate = _pose([0, 0, 0], [0.0, shift * 0.6, shift * 0.8]) @ inst.T_gt
+    m = instance_metrics(estimate, inst)
+    assert_allclose(m["translation_error_m"], shift)
+    assert_allclose(m["translation_error_sym_m"], shift)
+    assert_allclose(m["squared_translation_error_m2"], shift**2)
+    assert_allclose(m["rotation_error_deg"], 0.0, atol=1e-6)
+    assert m["success"] is success
+
+
+@pytest.mark.parametrize(
+    ("name", "angle_deg"),
+    [("master_chef_can", 73.0), ("tomato_soup_can", 151.0), ("bowl", 20.0)],
+)
+def test_symmetric_object_turned_about_its_axis_scores_zero(name, angle_deg):
+    inst = _instance(name, source_from_model=_pose([0.3, 0.2, -0.5], CENTER))
+    symmetry = inst.symmetry
+    turn = _pose(np.deg2rad(angle_deg) * symmetry.axis, [0, 0, 0], about=symmetry.center)
+    m = instance_metrics(inst.T_gt @ turn, inst)
+    assert_allclose(m["rotation_error_deg"], angle_deg, atol=1e-6)
+    assert m["rotation_error_sym_deg"] == pytest.approx(0.0, abs=1e-5)
+    assert m["translation_error_sym_m"] == pytest.approx(0.0, abs=1e-9)
+    assert m["success"] is True
+
+
+def test_discrete_symmetry_scores_zero_only_on_the_group():
+    inst = _instance("cracker_box", source_from_model=_pose([1.0, -0.2, 0.3], CENTER))
+    flip = inst.symmetry.discrete[1]  # 180 degrees about one principal axis
+    m = instance_metrics(inst.T_gt @ flip, inst)
+    assert_allclose(m["rotation_error_deg"], 180.0, atol=1e-6)
+    assert m["rotation_error_sym_deg"] == pytest.approx(0.0, abs=1e-5)
+    assert m["translation_error_sym_m"] == pytest.approx(0.0, abs=1e-9)
+    # A quarter turn about the same axis is 90 degrees from every element of the group.
+    axis = Rotation.from_matrix(flip[:3, :3]).as_rotvec() / np.pi
+    quarter = _pose(0.5 * np.pi * axis, [0, 0, 0], about=inst.symmetry.center)
+    assert_allclose(instance_metrics(inst.T_gt @ quarter, inst)["rotation_error_sym_deg"], 90.0)
+
+
+@pytest.mark.parametrize("name", ["max_rotation_deg", "max_translation_m"])
+def test_success_criteria_reject_non_positive(name):
+    with pytest.raises(ValueError, match=name):
+        SuccessCriteria(**{name: 0.0})
+
+
+def test_convergence_curves_follow_the_trajectory():
+    inst = _instance()
+    steps = [
+        inst.T_gt @ _pose(np.deg2rad(a) * np.array([1.0, 0, 0]), [0, 0, 0.001 * a], about=CENTER)
+        for a in (40.0, 10.0, 0.0)
+    ]
+    rotation, translation = convergence_curves(np.stack(steps), inst)
+    assert_allclose(rotation, [40.0, 10.0, 0.0], atol=1e-5)
+    assert_allclose(translation, [0.04, 0.01, 0.0], atol=1e-9)
+    with pytest.raises(ValueError, match="trajectory"):
+        convergence_curves(np.eye(4), inst)
+
+
+def test_registration_fit_counts_inliers():
+    inst = _instance()
+    moved = o3d.geometry.PointCloud(inst.source).transform(inst.T_gt)
+    inst = Instance(
+        inst.source, moved, inst.T_gt, inst.target_labels, inst.source_from_model, inst.metadata
+    )
+    fitness, rmse = registration_fit(inst.T_gt, inst, distance=0.001)
+    assert fitness == 1.0 and rmse == pytest.approx(0.0, abs=1e-12)
+    far = _pose([0, 0, 0], [0.5, 0, 0]) @ inst.T_gt
+    assert registration_fit(far, inst, distance=0.001) == (0.0, 0.0)
+    with pytest.raises(ValueError, match="distance"):
+        registration_fit(inst.T_gt, inst, distance=0.0)
+
+
+def test_task_seed_is_stable_and_distinct():
+    a = task_seed(0, "full", 0, 3, "fpfh_ransac")
+    assert a == task_seed(0, "full", 0, 3, "fpfh_ransac")
+    assert 0 <= a < 2**31
+    others = {
+        task_seed(0, "full", 0, 3, "fgr"),
+        task_seed(0, "partial", 0, 3, "fpfh_ransac"),
+        task_seed(1, "full", 0, 3, "fpfh_ransac"),
+        task_seed(0, "full", 0, 4, "fpfh_ransac"),
+    }
+    assert a not in others and len(others) == 4
+
+
+def test_registry_holds_the_issue_methods():
+    for name in (
+        "spectral",
+        "spectral_paper",
+        "icp_point_to_point",
+        "icp_point_to_plane",
+        "fpfh_ransac",
+        "fgr",
+    ):
+        assert callable(methods.get_method(name))
+    with pytest.raises(ValueError, match="fpfh_ransac"):
+        methods.get_method("teaser")
+
+
+def test_register_method_adds_one_and_rejects_clashes(monkeypatch):
+    monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
+
+    @methods.register_method("identity")
+    def identity(source, target, voxel_size, seed):
+        return np.eye(4), {}
+
+    assert methods.get_method("identity") is identity
+    assert methods.method_names()[-1] == "identity"
+    with pytest.raises(ValueError, match="already registered"):
+        methods.register_method("identity")
+    with pytest.raises(ValueError, match="name"):
+        methods.register_method("not a name")
+
+
+def test_spectral_variant_reports_its_trajectory(monkeypatch):
+    monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
+    from o3d_spectral import SpectralConvergenceCriteria
+
+    run = methods.register_spectral_variant(
+        "spectral_short", criteria=SpectralConvergenceCriteria(max_iteration=3)
+    )
+    inst = _instance()
+    source = o3d.geometry.PointCloud(inst.source)
+    source.estimate_normals()
+    target = o3d.geometry.PointCloud(source).transform(_pose([0, 0, 0.1], [0.01, 0, 0]))
+    transformation, info = run(source, target, 0.01, 0)
+    assert transformation.shape == (4, 4)
+    assert set(info) == set(methods.INFO_KEYS)
+    assert info["trajectory"].shape == (info["iterations"], 4, 4)
+    assert_allclose(info["trajectory"][0], np.eye(4))

@@ -1,0 +1,133 @@
+"""A two-instance suite end to end through ``eval`` and ``report``; resuming; workers."""
+
+import json
+
+import pytest
+from pandas.testing import assert_frame_equal
+
+from o3d_spectral.cli import main
+from o3d_spectral.harness import load_results, method_names, run_eval
+from o3d_spectral.harness.runner import CONFIG_FILE, RESULTS_FILE, TABLE_FILE
+from o3d_spectral.suite import make_suite
+
+VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
+
+
+@pytest.fixture(scope="module")
+def suite_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("suites") / "full"
+    make_suite("full", 2, 0, out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def run_dir(suite_dir, tmp_path_factory):
+    """Every registered method on both instances, through the command line."""
+    out = tmp_path_factory.mktemp("run")
+    assert main(["eval", "--suite", str(suite_dir), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def _lines(run):
+    return (run / RESULTS_FILE).read_text().splitlines()
+
+
+def assert_same_rows(a, b):
+    """Equal apart from the volatile columns (NaN equal to NaN)."""
+    assert_frame_equal(
+        a.drop(columns=sorted(VOLATILE)).reset_index(drop=True),
+        b.drop(columns=sorted(VOLATILE)).reset_index(drop=True),
+    )
+
+
+def test_eval_writes_one_row_per_instance_and_method(run_dir):
+    frame = load_results(run_dir)
+    assert len(frame) == 2 * len(method_names())
+    assert set(frame["method"]) == set(method_names())
+    assert frame["error"].isna().all()
+    table = (run_dir / TABLE_FILE).read_text().splitlines()
+    assert len(table) == 1 + len(frame)
+    for column in (
+        "rotation_error_sym_deg",
+        "translation_error_sym_m",
+        "success",
+        "time_s",
+        "squared_rotation_error_rad2",
+        "fitness",
+        "inlier_rmse",
+        "iterations",
+    ):
+        assert column in table[0]
+    spectral = frame[frame["method"] == "spectral"]
+    assert (spectral["curve_rotation_deg"].map(len) == spectral["iterations"]).all()
+    assert spectral["rotation_gradient_norm_rad"].notna().all()
+    config = json.loads((run_dir / CONFIG_FILE).read_text())
+    assert config["sessions"][0]["registrations"] == len(frame)
+
+
+def test_report_writes_every_table_and_plot(run_dir, tmp_path):
+    out = tmp_path / "report"
+    assert main(["report", str(run_dir), "--out", str(out)]) == 0
+    tables = [
+        f"{name}.{ext}"
+        for name in ("table1", "summary", "comparison")
+        for ext in ("md", "tex", "csv")
+    ]
+    plots = [
+        "success_vs_angle.png",
+        "cumulative_errors.png",
+        "time.png",
+        "convergence_spectral.png",
+        "convergence_spectral_paper.png",
+    ]
+    for name in [*tables, *plots, "report.md"]:
+        assert (out / name).stat().st_size > 0, name
+    for name in plots:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    table1 = (out / "table1.tex").read_text()
+    assert r"\toprule" in table1 and r"\bottomrule" in table1 and "C-1 (full)" in table1
+    assert "rad$^2$" in table1
+    report = (out / "report.md").read_text()
+    assert "](table1" not in report and "![Time per registration](time.png)" in report
+
+
+def test_resume_skips_done_pairs_and_reruns_identically(suite_dir, run_dir):
+    lines = _lines(run_dir)
+    before = load_results(run_dir)
+    (run_dir / RESULTS_FILE).write_text("\n".join(lines[:-3]) + "\n")  # "interrupted"
+    run_eval([suite_dir], run_dir, progress=False)
+    assert len(_lines(run_dir)) == len(lines)
+    assert_same_rows(load_results(run_dir), before)
+    run_eval([suite_dir], run_dir, progress=False)
+    assert len(_lines(run_dir)) == len(lines)
+    sessions = json.loads((run_dir / CONFIG_FILE).read_text())["sessions"]
+    assert [s["registrations"] for s in sessions] == [len(lines), 3, 0]
+
+
+def test_two_workers_give_the_same_rows(suite_dir, run_dir, tmp_path):
+    chosen = ["icp_point_to_plane", "fpfh_ransac", "spectral"]
+    run_eval([suite_dir], tmp_path, methods=chosen, workers=2, limit=1, progress=False)
+    two = load_results(tmp_path)
+    one = load_results(run_dir)
+    one = one[one["method"].isin(chosen) & (one["index"] == 0)]
+    assert len(two) == 3
+    assert_same_rows(two, one)
+
+
+def test_resume_refuses_other_settings(suite_dir, run_dir):
+    with pytest.raises(ValueError, match="voxel_size"):
+        run_eval([suite_dir], run_dir, voxel_size=0.01, progress=False)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"workers": 0}, "workers"),
+        ({"voxel_size": -1.0}, "voxel_size"),
+        ({"limit": 0}, "limit"),
+        ({"methods": ["nope"]}, "nope"),
+    ],
+)
+def test_eval_rejects_bad_arguments(suite_dir, tmp_path, kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        run_eval([suite_dir], tmp_path, progress=False, **kwargs)
