@@ -298,7 +298,7 @@ def _panels(frame, plt, rows: int = 1, height: float = 3.2):
 
 def _save(fig, plt, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -322,7 +322,7 @@ def plot_success_vs_angle(frame, path: Path) -> Path:
         ax.set_xlabel("initial rotation angle (deg)")
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("success rate (%)")
-    axes[0, -1].legend(fontsize=7)
+    axes[0, -1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     return _save(fig, plt, path)
 
 
@@ -360,7 +360,7 @@ def plot_cumulative_errors(frame, path: Path, *, thresholds: dict | None = None)
             ax.set_xlabel(label)
             ax.grid(alpha=0.3)
         axes[row, 0].set_ylabel("share of runs")
-    axes[0, -1].legend(fontsize=7)
+    axes[0, -1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     return _save(fig, plt, path)
 
 
