@@ -1,0 +1,159 @@
+"""The rotation correlation over all of SO(3) at once, by an SO(3) Fourier transform.
+
+``C_r(R) = 1/(4 pi) sum_l G^T U(R) F`` (paper, eq. correlation_rotation) on a grid of ZYZ
+Euler angles ``R = Rz(alpha) Ry(beta) Rz(gamma)``. With ``U(R) = Uz(alpha) d(beta)
+Uz(gamma)`` and ``W`` the unitary change of basis in which rotations about z are diagonal
+(``Uz(a) = W^H diag(exp(i m a)) W``)::
+
+    C_r(alpha, beta, gamma) = 1/(4 pi) sum_{m,n} K_mn(beta) exp(i (m alpha + n gamma)),
+    K_mn(beta) = sum_l conj(g^l_m) Delta^l_mn(beta) f^l_n,   g = W G, f = W F,
+    Delta^l(beta) = W d^l(beta) W^H
+
+so one 2D inverse FFT over ``(alpha, gamma)`` per ``beta`` gives the whole grid
+(``../shared/METHOD.md``, section 7; Kostelec & Rockmore's SOFT does the same with
+complex Wigner-d). Zero-padding the FFT refines the ``alpha, gamma`` step below
+``360 / (2B - 1)`` degrees; more ``beta`` samples refine ``beta``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import so3
+from .wigner import _quarter_turn, wigner_z
+
+__all__ = ["CorrelationGrid", "correlation_grid", "peaks"]
+
+
+@dataclass(frozen=True)
+class CorrelationGrid:
+    """``C_r`` sampled on a ZYZ Euler-angle grid.
+
+    Attributes
+    ----------
+    values : ndarray, shape (n_beta, n_alpha, n_alpha)
+        ``[j, a, c] = C_r(alphas[a], betas[j], gammas[c])``.
+    alphas, gammas : ndarray, shape (n_alpha,)
+        ``2 pi k / n_alpha``, radians.
+    betas : ndarray, shape (n_beta,)
+        ``pi (j + 1/2) / n_beta``, radians.
+    """
+
+    values: NDArray[np.float64]
+    alphas: NDArray[np.float64]
+    betas: NDArray[np.float64]
+    gammas: NDArray[np.float64]
+
+    def rotation(self, index: tuple[int, int, int]) -> NDArray[np.float64]:
+        """Rotation matrix (3, 3) at grid index ``(j, a, c)``."""
+        j, a, c = index
+        return so3.from_euler_zyz(self.alphas[a], self.betas[j], self.gammas[c])
+
+
+@lru_cache(maxsize=8)
+def _diagonalising_basis(bandwidth: int) -> NDArray[np.complex128]:
+    """``W`` (2B-1, 2B-1): rows ``m > 0``: ``(e_m + i e_-m) / sqrt2``; ``m < 0``:
+    ``(e_|m| - i e_-|m|) / sqrt2``; ``m = 0``: ``e_0``; ``W Uz(a) W^H = diag(exp(i m a))``."""
+    B = bandwidth
+    W = np.zeros((2 * B - 1, 2 * B - 1), dtype=np.complex128)
+    W[B - 1, B - 1] = 1.0
+    r = 1.0 / np.sqrt(2.0)
+    for m in range(1, B):
+        W[B - 1 + m, B - 1 + m], W[B - 1 + m, B - 1 - m] = r, 1j * r
+        W[B - 1 - m, B - 1 + m], W[B - 1 - m, B - 1 - m] = r, -1j * r
+    return W
+
+
+@lru_cache(maxsize=8)
+def _delta(bandwidth: int, n_beta: int) -> NDArray[np.complex128]:
+    """``Delta^l(beta_j) = W Q Uz(beta_j) Q^T W^H``, shape (n_beta, B, 2B-1, 2B-1)."""
+    W = _diagonalising_basis(bandwidth)
+    Q = _quarter_turn(bandwidth)
+    betas = np.pi * (np.arange(n_beta) + 0.5) / n_beta
+    d = np.stack([Q @ wigner_z(beta, bandwidth) @ Q.transpose(0, 2, 1) for beta in betas])
+    out = W @ d @ W.conj().T
+    out.flags.writeable = False
+    return out
+
+
+def correlation_grid(
+    F: ArrayLike, G: ArrayLike, *, n_alpha: int | None = None, n_beta: int | None = None
+) -> CorrelationGrid:
+    """``C_r`` (eq. correlation_rotation) on a whole grid of ZYZ Euler angles.
+
+    Parameters
+    ----------
+    F, G : array_like, shape (B, 2B - 1)
+        Coefficients of the moving and the fixed EGI.
+    n_alpha : int, optional
+        Samples of ``alpha`` and ``gamma`` (>= 2B - 1); ``2B`` when omitted.
+    n_beta : int, optional
+        Samples of ``beta``; ``2B`` when omitted.
+
+    Returns
+    -------
+    CorrelationGrid
+    """
+    F, G = np.asarray(F, dtype=np.float64), np.asarray(G, dtype=np.float64)
+    B = F.shape[0]
+    n_alpha = 2 * B if n_alpha is None else int(n_alpha)
+    n_beta = 2 * B if n_beta is None else int(n_beta)
+    if n_alpha < 2 * B - 1:
+        raise ValueError(f"n_alpha must be >= 2B - 1 = {2 * B - 1}, got {n_alpha}")
+    if n_beta < 1:
+        raise ValueError(f"n_beta must be positive, got {n_beta}")
+    W = _diagonalising_basis(B)
+    g, f = G @ W.T, F @ W.T  # (B, 2B-1): g^l = W G^l
+    K = np.einsum("lm,jlmn,ln->jmn", g.conj(), _delta(B, n_beta), f)  # (n_beta, m, n)
+    # Place order m at FFT index m mod n_alpha, then sum_mn K exp(i (m a + n c)).
+    spectrum = np.zeros((n_beta, n_alpha, n_alpha), dtype=np.complex128)
+    idx = np.arange(-(B - 1), B) % n_alpha
+    spectrum[:, idx[:, None], idx[None, :]] = K
+    values = np.fft.ifft2(spectrum, axes=(1, 2)).real * (n_alpha**2) / (4.0 * np.pi)
+    angles = 2.0 * np.pi * np.arange(n_alpha) / n_alpha
+    return CorrelationGrid(values, angles, np.pi * (np.arange(n_beta) + 0.5) / n_beta, angles)
+
+
+def peaks(
+    grid: CorrelationGrid, *, count: int = 8, min_separation: float = np.deg2rad(15.0)
+) -> list[tuple[NDArray[np.float64], float]]:
+    """The highest local maxima of the grid, as distinct rotations.
+
+    Parameters
+    ----------
+    grid : CorrelationGrid
+    count : int
+        Hypotheses returned at most.
+    min_separation : float
+        Smallest angle (radians) between two returned rotations.
+
+    Returns
+    -------
+    list of (ndarray (3, 3), float)
+        Rotations and their correlation values, best first.
+    """
+    v = grid.values
+    # Local maxima: alpha and gamma wrap around; beta is padded with -inf at its ends.
+    padded = np.pad(v, ((1, 1), (0, 0), (0, 0)), constant_values=-np.inf)
+    is_peak = np.ones(v.shape, dtype=bool)
+    for dj in (-1, 0, 1):
+        shifted_j = padded[1 + dj : 1 + dj + v.shape[0]]
+        for da in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                if dj == da == dc == 0:
+                    continue
+                is_peak &= v >= np.roll(shifted_j, (-da, -dc), axis=(1, 2))
+    order = np.argsort(v[is_peak])[::-1]
+    indices = np.argwhere(is_peak)[order]
+    chosen: list[tuple[NDArray[np.float64], float]] = []
+    for index in indices:
+        R = grid.rotation(tuple(index))
+        if all(so3.rotation_angle(R.T @ other) >= min_separation for other, _ in chosen):
+            chosen.append((R, float(v[tuple(index)])))
+            if len(chosen) == count:
+                break
+    return chosen
