@@ -61,7 +61,10 @@ def test_degree_one_is_the_rotation_in_y_z_x_order():
 
 @pytest.mark.parametrize("seed", range(3))
 def test_rotating_a_band_limited_function_multiplies_its_coefficients(seed):
-    """SHT of g(x) = f(R^T x) on the grid equals U(R) F (eq. real_fourier_transform_gr_simplified)."""
+    """SHT of g(x) = f(R^T x) on the grid equals U(R) F.
+
+    Paper, eq. real_fourier_transform_gr_simplified.
+    """
     rng = np.random.default_rng(seed)
     F = band_limited(B, rng)
     R = Rotation.random(random_state=seed).as_matrix()
