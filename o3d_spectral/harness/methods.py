@@ -197,6 +197,17 @@ def _refine(source, target, voxel_size: float, init: np.ndarray) -> np.ndarray:
     return np.asarray(result.transformation)
 
 
+def _global_then_refine(source, target, voxel_size: float, seed: int, match) -> np.ndarray:
+    """FPFH features of both clouds, the global registration
+    ``match(source_down, target_down, source_fpfh, target_fpfh)`` (seeded), then
+    :func:`_refine`; returns the 4x4 estimate."""
+    source_down, source_fpfh = _fpfh(source, voxel_size)
+    target_down, target_fpfh = _fpfh(target, voxel_size)
+    o3d.utility.random.seed(seed)
+    coarse = match(source_down, target_down, source_fpfh, target_fpfh)
+    return _refine(source, target, voxel_size, coarse.transformation)
+
+
 @register_method("fpfh_ransac")
 def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
@@ -204,40 +215,38 @@ def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarra
     Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
     3-point samples, at most 100000 iterations at confidence 0.999.
     """
-    source_down, source_fpfh = _fpfh(source, voxel_size)
-    target_down, target_fpfh = _fpfh(target, voxel_size)
     distance = 1.5 * voxel_size
-    o3d.utility.random.seed(seed)
-    coarse = _reg.registration_ransac_based_on_feature_matching(
-        source_down,
-        target_down,
-        source_fpfh,
-        target_fpfh,
-        True,
-        distance,
-        _reg.TransformationEstimationPointToPoint(False),
-        3,
-        [
-            _reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-            _reg.CorrespondenceCheckerBasedOnDistance(distance),
-        ],
-        _reg.RANSACConvergenceCriteria(100000, 0.999),
-    )
-    return _refine(source, target, voxel_size, coarse.transformation), {}
+    checkers = [
+        _reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+        _reg.CorrespondenceCheckerBasedOnDistance(distance),
+    ]
+
+    def ransac(source_down, target_down, source_fpfh, target_fpfh):
+        return _reg.registration_ransac_based_on_feature_matching(
+            source_down,
+            target_down,
+            source_fpfh,
+            target_fpfh,
+            True,
+            distance,
+            _reg.TransformationEstimationPointToPoint(False),
+            3,
+            checkers,
+            _reg.RANSACConvergenceCriteria(100000, 0.999),
+        )
+
+    return _global_then_refine(source, target, voxel_size, seed, ransac), {}
 
 
 @register_method("fgr")
 def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D Fast Global Registration on the tutorial's FPFH features (distance
     ``0.5 v``), then the same point-to-plane ICP refinement."""
-    source_down, source_fpfh = _fpfh(source, voxel_size)
-    target_down, target_fpfh = _fpfh(target, voxel_size)
-    o3d.utility.random.seed(seed)
-    coarse = _reg.registration_fgr_based_on_feature_matching(
-        source_down,
-        target_down,
-        source_fpfh,
-        target_fpfh,
-        _reg.FastGlobalRegistrationOption(maximum_correspondence_distance=0.5 * voxel_size),
-    )
-    return _refine(source, target, voxel_size, coarse.transformation), {}
+    option = _reg.FastGlobalRegistrationOption(maximum_correspondence_distance=0.5 * voxel_size)
+
+    def fast_global(source_down, target_down, source_fpfh, target_fpfh):
+        return _reg.registration_fgr_based_on_feature_matching(
+            source_down, target_down, source_fpfh, target_fpfh, option
+        )
+
+    return _global_then_refine(source, target, voxel_size, seed, fast_global), {}
