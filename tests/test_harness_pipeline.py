@@ -94,7 +94,8 @@ def test_report_writes_every_table_and_plot(run_dir, tmp_path):
 def test_resume_skips_done_pairs_and_reruns_identically(suite_dir, run_dir):
     lines = _lines(run_dir)
     before = load_results(run_dir)
-    (run_dir / RESULTS_FILE).write_text("\n".join(lines[:-3]) + "\n")  # "interrupted"
+    # Interrupted: two rows missing and a third cut off halfway through.
+    (run_dir / RESULTS_FILE).write_text("\n".join(lines[:-3]) + "\n" + lines[-3][:40])
     run_eval([suite_dir], run_dir, progress=False)
     assert len(_lines(run_dir)) == len(lines)
     assert_same_rows(load_results(run_dir), before)
@@ -114,9 +115,13 @@ def test_two_workers_give_the_same_rows(suite_dir, run_dir, tmp_path):
     assert_same_rows(two, one)
 
 
-def test_resume_refuses_other_settings(suite_dir, run_dir):
+def test_resume_refuses_other_settings(suite_dir, run_dir, tmp_path):
     with pytest.raises(ValueError, match="voxel_size"):
         run_eval([suite_dir], run_dir, voxel_size=0.01, progress=False)
+    other = tmp_path / "full"  # same folder name, another seed
+    make_suite("full", 1, 1, other, progress=False)
+    with pytest.raises(ValueError, match="seed 1"):
+        run_eval([other], run_dir, progress=False)
 
 
 @pytest.mark.parametrize(

@@ -181,9 +181,20 @@ def _prepare_config(out: Path, suites: list[Suite], settings: dict, methods: lis
                 )
     else:
         config = {**settings, "suites": [], "methods": [], "sessions": []}
-    known = {entry["name"] for entry in config["suites"]}
+    known = {entry["name"]: entry for entry in config["suites"]}
     for suite in suites:
-        if _suite_name(suite) not in known:
+        entry = known.get(_suite_name(suite))
+        if entry and (entry["condition"], entry["seed"]) != (
+            suite.condition,
+            suite.manifest["seed"],
+        ):
+            raise ValueError(
+                f"suite {str(suite.root)!r} is {suite.condition} with seed "
+                f"{suite.manifest['seed']}, but out {str(out)!r} holds results of a suite of the "
+                f"same name that is {entry['condition']} with seed {entry['seed']}; choose "
+                "another --out"
+            )
+        if entry is None:
             config["suites"].append(
                 {
                     "name": _suite_name(suite),
@@ -198,10 +209,15 @@ def _prepare_config(out: Path, suites: list[Suite], settings: dict, methods: lis
 
 
 def _done(results: Path) -> set[tuple]:
+    """Keys of the rows already in ``results``; a last row cut off by a kill is removed
+    (it will be run again)."""
     if not results.is_file():
         return set()
-    with results.open() as lines:
-        return {tuple(json.loads(line)[k] for k in _KEY) for line in lines if line.strip()}
+    text = results.read_text()
+    complete = text[: text.rfind("\n") + 1]
+    if complete != text:
+        results.write_text(complete)
+    return {tuple(json.loads(line)[k] for k in _KEY) for line in complete.splitlines() if line}
 
 
 @contextlib.contextmanager
