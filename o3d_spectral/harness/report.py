@@ -23,12 +23,16 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from o3d_spectral.harness._optional import require
 from o3d_spectral.harness.methods import method_names
 from o3d_spectral.harness.runner import CONFIG_FILE, CURVE_COLUMNS, load_results
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["PAPER_CONDITIONS", "Table", "make_report", "paper_table", "summary_table"]
 
@@ -57,20 +61,20 @@ class Table:
 
     name: str
     caption: str
-    frame: object
+    frame: pd.DataFrame
     formats: dict[str, str]
 
 
 # ---------------------------------------------------------------------------- ordering
 
 
-def _method_order(frame) -> list[str]:
+def _method_order(frame: pd.DataFrame) -> list[str]:
     present = list(dict.fromkeys(frame["method"]))
     known = [m for m in method_names() if m in present]
     return known + sorted(m for m in present if m not in known)
 
 
-def _suite_order(frame) -> list[tuple[str, str]]:
+def _suite_order(frame: pd.DataFrame) -> list[tuple[str, str]]:
     """(suite, condition) pairs: C-1, C-2, C-3 first, then the others by name."""
     pairs = frame[["suite", "condition"]].drop_duplicates().itertuples(index=False)
     rank = {condition: k for k, condition in enumerate(PAPER_CONDITIONS)}
@@ -81,7 +85,7 @@ def _suite_label(suite: str, condition: str) -> str:
     return f"{PAPER_CONDITIONS[condition]} ({suite})" if condition in PAPER_CONDITIONS else suite
 
 
-def _spectral_methods(frame) -> list[str]:
+def _spectral_methods(frame: pd.DataFrame) -> list[str]:
     """Methods that reported convergence curves (iterative spectral variants)."""
     if CURVE_COLUMNS[0] not in frame:
         return []
@@ -92,9 +96,9 @@ def _spectral_methods(frame) -> list[str]:
 # ---------------------------------------------------------------------------- tables
 
 
-def paper_table(frame) -> Table:
+def paper_table(frame: pd.DataFrame) -> Table:
     """The paper's Table 1: mean squared symmetry-aware errors per method and suite."""
-    pd = require("pandas")
+    pandas = require("pandas")
     suites = _suite_order(frame)
     rows = []
     for method in _method_order(frame):
@@ -107,7 +111,7 @@ def paper_table(frame) -> Table:
                 cell = frame[(frame["method"] == method) & (frame["suite"] == suite)]
                 row[_suite_label(suite, condition)] = cell[column].mean()
             rows.append(row)
-    result = pd.DataFrame(rows)
+    result = pandas.DataFrame(rows)
     formats = {"method": "text", "error": "text"} | {c: "sci" for c in result.columns[2:]}
     caption = (
         "Mean squared error over instances (the paper's Table 1): translation at the "
@@ -117,9 +121,9 @@ def paper_table(frame) -> Table:
     return Table("table1", caption, result, formats)
 
 
-def summary_table(frame) -> Table:
+def summary_table(frame: pd.DataFrame) -> Table:
     """Per suite and method: success rate, median errors over successes, time."""
-    pd = require("pandas")
+    pandas = require("pandas")
     rows = []
     for suite, condition in _suite_order(frame):
         for method in _method_order(frame):
@@ -141,7 +145,7 @@ def summary_table(frame) -> Table:
                     "failed": failed,
                 }
             )
-    result = pd.DataFrame(rows)
+    result = pandas.DataFrame(rows)
     formats = {
         "suite": "text",
         "method": "text",
@@ -163,7 +167,7 @@ def summary_table(frame) -> Table:
 
 def comparison_table(summary: Table, spectral: list[str]) -> Table:
     """Each spectral method against the most successful non-spectral method, per suite."""
-    pd = require("pandas")
+    pandas = require("pandas")
     data = summary.frame
     rows = []
     for suite in dict.fromkeys(data["suite"]):
@@ -190,7 +194,7 @@ def comparison_table(summary: Table, spectral: list[str]) -> Table:
                     "verdict": "loses" if delta < 0 else ("ties" if delta == 0 else "wins"),
                 }
             )
-    result = pd.DataFrame(rows)
+    result = pandas.DataFrame(rows)
     formats = {c: "text" for c in ("suite", "method", "best other", "verdict")}
     formats |= {"success (%)": "pct", "its success (%)": "pct"}
     formats |= {"median time (s)": "f3", "its median time (s)": "f3"}
@@ -282,11 +286,11 @@ def _pyplot():
     return require("matplotlib.pyplot")
 
 
-def _colours(frame) -> dict[str, str]:
+def _colours(frame: pd.DataFrame) -> dict[str, str]:
     return {m: f"C{k % 10}" for k, m in enumerate(_method_order(frame))}
 
 
-def _panels(frame, plt, rows: int = 1, height: float = 3.2):
+def _panels(frame: pd.DataFrame, plt, *, rows: int = 1, height: float = 3.2):
     suites = _suite_order(frame)
     fig, axes = plt.subplots(
         rows, len(suites), figsize=(3.6 * len(suites), height * rows), squeeze=False
@@ -303,17 +307,17 @@ def _save(fig, plt, path: Path) -> Path:
     return path
 
 
-def plot_success_vs_angle(frame, path: Path) -> Path:
+def plot_success_vs_angle(frame: pd.DataFrame, path: Path) -> Path:
     """Success rate (%) per bin of the initial rotation angle (0-180 degrees, 20-degree bins)."""
     plt = _pyplot()
-    pd = require("pandas")
+    pandas = require("pandas")
     colours = _colours(frame)
     fig, axes, suites = _panels(frame, plt)
     centres = 0.5 * (ANGLE_BINS_DEG[1:] + ANGLE_BINS_DEG[:-1])
     for ax, (suite, _) in zip(axes[0], suites, strict=True):
         for method in _method_order(frame):
             runs = frame[(frame["suite"] == suite) & (frame["method"] == method)]
-            bins = pd.cut(runs["init_angle_deg"], ANGLE_BINS_DEG, include_lowest=True)
+            bins = pandas.cut(runs["init_angle_deg"], ANGLE_BINS_DEG, include_lowest=True)
             rate = runs["success"].astype(float).groupby(bins, observed=False).mean()
             ax.plot(centres, 100 * rate.to_numpy(), "o-", ms=3, color=colours[method], label=method)
         ax.set_xlim(0, 180)
@@ -326,7 +330,9 @@ def plot_success_vs_angle(frame, path: Path) -> Path:
     return _save(fig, plt, path)
 
 
-def plot_cumulative_errors(frame, path: Path, *, thresholds: dict | None = None) -> Path:
+def plot_cumulative_errors(
+    frame: pd.DataFrame, path: Path, *, thresholds: dict | None = None
+) -> Path:
     """Share of runs with an error at most x (rotation in degrees, translation in mm).
 
     Runs that raised an error count in the denominator, so a curve may stay below 1.
@@ -364,7 +370,7 @@ def plot_cumulative_errors(frame, path: Path, *, thresholds: dict | None = None)
     return _save(fig, plt, path)
 
 
-def plot_times(frame, path: Path) -> Path:
+def plot_times(frame: pd.DataFrame, path: Path) -> Path:
     """Box plots of the wall time per registration, per suite and method (log scale)."""
     plt = _pyplot()
     methods = _method_order(frame)
@@ -389,7 +395,7 @@ def _padded(curves: list[list[float]]) -> np.ndarray:
     return np.array([c + [c[-1]] * (length - len(c)) for c in curves], dtype=float)
 
 
-def plot_convergence(frame, method: str, path: Path) -> Path:
+def plot_convergence(frame: pd.DataFrame, method: str, path: Path) -> Path:
     """Error against iteration for one spectral method (the paper's Fig. 2 and 4).
 
     One row per suite: translation error (mm) and rotation error (deg) of each iterate,
@@ -438,7 +444,7 @@ def _run_config(results: Path) -> dict:
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
-def _run_section(config: dict, frame) -> str:
+def _run_section(config: dict, frame: pd.DataFrame) -> str:
     sessions = config.get("sessions", [])
     if not sessions:
         return "Run settings unknown (no config.json next to the results).\n"
@@ -460,7 +466,9 @@ def _run_section(config: dict, frame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _markdown_report(config: dict, frame, tables: list[Table], figures: dict, prefix: str) -> str:
+def _markdown_report(
+    config: dict, frame: pd.DataFrame, tables: list[Table], figures: dict, prefix: str
+) -> str:
     parts = ["## Run\n", _run_section(config, frame)]
     titles = {
         "table1": "Table 1 (paper layout)",
