@@ -32,6 +32,18 @@ class SpectralRegistrationOption:
     preconditioned : bool
         Divide the rotation gradient by the local curvature axis by axis (a damped Newton
         step) rather than by its mean (the paper's plain gradient, scaled).
+    rotation_search : {"local", "global"}
+        ``"local"``: the paper's gradient ascent from ``init``. ``"global"``: evaluate the
+        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`), climb from
+        each of its ``hypotheses`` highest peaks for ``hypothesis_iterations``, keep the
+        one whose result fits best, and climb on to convergence.
+    hypotheses : int
+        Peaks of the global correlation tried.
+    hypothesis_iterations : int
+        Iterations of the law from each hypothesis before they are ranked.
+    search_samples : int or None
+        Samples of each Euler angle in the global grid (``4 * bandwidth`` when None:
+        steps of 180 / (2B) degrees in alpha and gamma).
     max_rotation_step : float
         Largest rotation applied in one iteration, radians.
     egi_binned : bool
@@ -76,6 +88,10 @@ class SpectralRegistrationOption:
     lambda_t: float = 0.5
     lambda_r: float = 0.5
     preconditioned: bool = True
+    rotation_search: str = "local"
+    hypotheses: int = 8
+    hypothesis_iterations: int = 12
+    search_samples: int | None = None
     max_rotation_step: float = 0.35
     egi_binned: bool = False
     egi_smoothing: tuple[float, ...] = (0.3, 0.1)
@@ -104,6 +120,20 @@ class SpectralRegistrationOption:
         for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.rotation_search not in ("local", "global"):
+            raise ValueError(
+                f"rotation_search must be 'local' or 'global', got {self.rotation_search!r}"
+            )
+        if int(self.hypotheses) != self.hypotheses or self.hypotheses < 2:
+            raise ValueError(f"hypotheses must be an integer >= 2, got {self.hypotheses}")
+        if self.hypothesis_iterations < 1:
+            raise ValueError(
+                f"hypothesis_iterations must be >= 1, got {self.hypothesis_iterations}"
+            )
+        if self.search_samples is not None and self.search_samples < 2 * self.bandwidth - 1:
+            raise ValueError(
+                f"search_samples must be >= 2 * bandwidth - 1, got {self.search_samples}"
+            )
         if isinstance(self.target_viewpoint, str) and self.target_viewpoint != "auto":
             raise ValueError(
                 f"target_viewpoint must be 'auto', a point or None, got {self.target_viewpoint!r}"

@@ -12,7 +12,8 @@ from numpy.typing import ArrayLike, NDArray
 from . import so3
 from .cloud import as_arrays, to_legacy
 from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
-from .stepper import SpectralStepper
+from .so3fft import correlation_grid, peaks
+from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["IterationRecord", "SpectralRegistrationResult", "registration_spectral"]
 
@@ -78,6 +79,12 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         Metres.
     translation_peak : float
         Final phase-correlation peak height in [0, 1], a confidence figure.
+    hypotheses : list of (ndarray (4, 4), float)
+        Global search only: every rotation hypothesis after its first climb, with its
+        fitness on the down-sampled clouds, best first (the returned transformation is
+        the first, climbed to convergence).
+    confidence : float
+        Global search only: best minus second-best hypothesis fitness (0 when local).
     """
 
     def __init__(self) -> None:
@@ -88,6 +95,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.run_time = 0.0
         self.max_correspondence_distance = 0.0
         self.translation_peak = 0.0
+        self.hypotheses: list[tuple[NDArray[np.float64], float]] = []
+        self.confidence = 0.0
 
     def __repr__(self) -> str:
         return (
@@ -110,6 +119,73 @@ class _Pose:
         out[:3, :3] = self.R
         out[:3, 3] = self.pivot + self.T - self.R @ self.pivot
         return out
+
+
+@dataclass
+class _Climb:
+    """One run of the control law: its pose, smoothing level and history."""
+
+    pose: _Pose
+    level: int = 0
+    history: list[IterationRecord] = field(default_factory=list)
+    converged: bool = False
+
+
+def _climb(
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    climb: _Climb,
+    iterations: int,
+    tolerance: tuple[float, float],
+    init: NDArray[np.float64],
+    start: float,
+) -> None:
+    """Apply the control law (eq. control_law) up to ``iterations`` times, in place."""
+    pose = climb.pose
+    for _ in range(iterations):
+        if climb.converged:
+            return
+        evaluation = stepper.evaluate(moving, pose.R, pose.T, level=climb.level)
+        t_norm = float(np.linalg.norm(evaluation.translation))
+        r_norm = float(np.linalg.norm(evaluation.rotation))
+        climb.history.append(
+            IterationRecord(
+                iteration=len(climb.history),
+                transformation=pose.matrix() @ init,
+                rotation=pose.R.copy(),
+                translation=pose.T.copy(),
+                cost_translation=evaluation.cost_translation,
+                cost_rotation=evaluation.cost_rotation,
+                translation_gradient_norm=t_norm,
+                rotation_gradient_norm=r_norm,
+                correlation=evaluation.correlation,
+                translation_peak=evaluation.translation_peak,
+                time=time.perf_counter() - start,
+            )
+        )
+        level = stepper.next_level(climb.level, evaluation)
+        if level == climb.level == stepper.levels - 1 and (
+            t_norm < tolerance[0] and r_norm < tolerance[1]
+        ):
+            climb.converged = True
+            return
+        climb.level = level
+        delta_rotation, delta_translation = stepper.increments(evaluation)
+        pose.T = pose.T + delta_translation
+        pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
+
+
+def _starting_rotations(
+    stepper: SpectralStepper, moving: MovingCloud
+) -> list[NDArray[np.float64]]:
+    """The identity (local search), or the peaks of ``C_r`` over all of SO(3) (global)."""
+    option = stepper.option
+    if option.rotation_search == "local":
+        return [np.eye(3)]
+    F, G = stepper.rotation_spectra(moving)
+    samples = option.search_samples or 4 * option.bandwidth
+    grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+    return [R for R, _ in peaks(grid, count=option.hypotheses)]
 
 
 def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
@@ -188,37 +264,25 @@ def registration_spectral(
     stepper = SpectralStepper(target, voxel_size, option=option)
     moving = stepper.moving(source, "source", transformation=init)
 
-    tolerance_t = criteria.translation_tolerance or 0.02 * voxel_size
-    pose = _Pose(moving.centroid)
+    tolerance = (criteria.translation_tolerance or 0.02 * voxel_size, criteria.rotation_tolerance)
+    climbs = [_Climb(_Pose(moving.centroid, R)) for R in _starting_rotations(stepper, moving)]
     result = SpectralRegistrationResult()
-    for iteration in range(criteria.max_iteration):
-        evaluation = stepper.evaluate(moving, pose.R, pose.T, level=stepper.level)
-        t_norm = float(np.linalg.norm(evaluation.translation))
-        r_norm = float(np.linalg.norm(evaluation.rotation))
-        result.history.append(
-            IterationRecord(
-                iteration=iteration,
-                transformation=pose.matrix() @ init,
-                rotation=pose.R.copy(),
-                translation=pose.T.copy(),
-                cost_translation=evaluation.cost_translation,
-                cost_rotation=evaluation.cost_rotation,
-                translation_gradient_norm=t_norm,
-                rotation_gradient_norm=r_norm,
-                correlation=evaluation.correlation,
-                translation_peak=evaluation.translation_peak,
-                time=time.perf_counter() - start,
-            )
-        )
-        result.translation_peak = evaluation.translation_peak
-        final_level = not stepper.advance(evaluation) and stepper.level == stepper.levels - 1
-        if final_level and t_norm < tolerance_t and r_norm < criteria.rotation_tolerance:
-            result.converged = True
-            break
-        delta_rotation, delta_translation = stepper.increments(evaluation)
-        pose.T = pose.T + delta_translation
-        pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
-    result.num_iterations = len(result.history)
+    if len(climbs) > 1:  # a first short climb from every hypothesis, then rank them
+        budget = min(option.hypothesis_iterations, criteria.max_iteration)
+        for climb in climbs:
+            _climb(stepper, moving, climb, budget, tolerance, init, start)
+        scores = [stepper.fitness(moving, c.pose.R, c.pose.T) for c in climbs]
+        ranked = sorted(zip(scores, climbs, strict=True), key=lambda pair: -pair[0])
+        climbs = [climb for _, climb in ranked]
+        result.hypotheses = [(climb.pose.matrix() @ init, score) for score, climb in ranked]
+        result.confidence = ranked[0][0] - ranked[1][0]
+    best = climbs[0]
+    _climb(stepper, moving, best, criteria.max_iteration - len(best.history), tolerance, init,
+           start)
+    result.history, result.converged = best.history, best.converged
+    result.num_iterations = len(best.history)
+    result.translation_peak = best.history[-1].translation_peak
+    pose = best.pose
 
     transformation = pose.matrix() @ init
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from . import so3
 from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
@@ -168,6 +169,7 @@ class SpectralStepper:
         raw = self._egi(prepared.normals)
         self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         self.target_points = points
+        self._target_tree = cKDTree(points)
         self.viewpoint = self._viewpoint(prepared)
         self.level = 0
 
@@ -356,16 +358,31 @@ class SpectralStepper:
             w *= self.option.max_rotation_step / angle
         return so3.exp(w), self.option.lambda_t * evaluation.translation
 
-    def advance(self, evaluation: Evaluation) -> bool:
-        """Move to the next finer smoothing level once the rotation step is small.
+    def rotation_spectra(
+        self, moving: MovingCloud, level: int = -1
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Smoothed, normalised EGI coefficients ``(F, G)`` of the moving (whole, unculled)
+        and the fixed cloud at a smoothing level, shape (B, 2B - 1) each."""
+        return self._smooth(moving.coefficients, level), self.target_coefficients[level]
 
-        Returns True when it moved.
-        """
+    def next_level(self, level: int, evaluation: Evaluation) -> int:
+        """The smoothing level to use after ``evaluation`` (made at ``level``): the next
+        finer one once the rotation step is below ``option.smoothing_switch``."""
         small = np.linalg.norm(evaluation.rotation) < self.option.smoothing_switch
-        if small and self.level < self.levels - 1:
-            self.level += 1
-            return True
-        return False
+        return level + 1 if small and level < self.levels - 1 else level
+
+    def fitness(
+        self, moving: MovingCloud, rotation: ArrayLike, translation: ArrayLike
+    ) -> float:
+        """Share of the moving cloud's voxels within one voxel of a fixed-cloud voxel.
+
+        Open3D's ``fitness`` on the down-sampled clouds, at the pose ``x -> R (x - c) + c + T``;
+        used to rank rotation hypotheses.
+        """
+        R = np.asarray(rotation, dtype=np.float64)
+        moved = (moving.points - moving.centroid) @ R.T + moving.centroid + translation
+        distances, _ = self._target_tree.query(moved, distance_upper_bound=self.voxel_size)
+        return float(np.mean(np.isfinite(distances)))
 
     def step(self, cloud: object) -> Step:
         """One control cycle for a freshly captured cloud (paper, Algorithm 1, loop body).
@@ -384,6 +401,6 @@ class SpectralStepper:
         """
         moving = self.moving(cloud, "cloud")
         evaluation = self.evaluate(moving, level=self.level)
-        self.advance(evaluation)
+        self.level = self.next_level(self.level, evaluation)
         delta_rotation, delta_translation = self.increments(evaluation)
         return Step(delta_rotation, delta_translation, moving.centroid, evaluation)

@@ -214,3 +214,19 @@ def test_variants_converge_on_a_small_motion(option):
     assert rotation_error(result.transformation, T) < 3.0
     center = np.asarray(source.points).mean(axis=0)
     assert translation_error(result.transformation, T, center=center) < 0.004
+
+
+def test_global_search_recovers_a_large_rotation():
+    source = sample_model("power_drill", 6000)
+    T = np.eye(4)
+    T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
+    T[:3, 3] = [0.05, 0.1, -0.02]
+    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
+    result = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL,
+                                                option=option)
+    _accurate(result, T, source.points)
+    assert 2 <= len(result.hypotheses) <= option.hypotheses
+    scores = [score for _, score in result.hypotheses]
+    assert scores == sorted(scores, reverse=True) and result.confidence >= 0
+    local = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL)
+    assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here
