@@ -165,6 +165,7 @@ def test_registry_holds_the_issue_methods():
     for name in (
         "spectral",
         "spectral_paper",
+        "spectral_global",
         "icp_point_to_point",
         "icp_point_to_plane",
         "fpfh_ransac",

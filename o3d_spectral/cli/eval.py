@@ -13,8 +13,8 @@ EXAMPLES = (
     "results/run   # adds a method to a finished run\n"
     "\n"
     "Run it again with the same --out to resume: done (instance, method) pairs are skipped.\n"
-    "Methods: spectral, spectral_paper, icp_point_to_point, icp_point_to_plane, fpfh_ransac,\n"
-    "fgr, and any a plugin registers (an unknown name lists them)."
+    "Methods: spectral, spectral_paper, spectral_global, icp_point_to_point, icp_point_to_plane,\n"
+    "fpfh_ransac, fgr, and any a plugin registers (an unknown name lists them)."
 )
 
 

@@ -141,6 +141,9 @@ register_spectral_variant(
         target_viewpoint=None,
     ),
 )
+register_spectral_variant(
+    "spectral_global", option=SpectralRegistrationOption(rotation_search="global")
+)
 
 
 def _down_sampled(cloud: o3d.geometry.PointCloud, voxel_size: float) -> o3d.geometry.PointCloud:
