@@ -46,6 +46,9 @@ class RealFFT3:
         FFTW planner effort: ``"measure"`` times candidate algorithms (a few hundred
         milliseconds per new shape, about 20% faster transforms afterwards: worth it for
         long servoing runs); ``"estimate"`` plans at once (right for one registration).
+    precision : {"single", "double"}
+        Floating-point precision of the grids and spectra; single is about twice as fast
+        and ample for locating a correlation peak (relative error ~1e-7).
 
     Notes
     -----
@@ -54,27 +57,36 @@ class RealFFT3:
     """
 
     def __init__(
-        self, shape: tuple[int, int, int], *, threads: int = 1, planning: str = "estimate"
+        self,
+        shape: tuple[int, int, int],
+        *,
+        threads: int = 1,
+        planning: str = "estimate",
+        precision: str = "double",
     ) -> None:
         if planning not in ("estimate", "measure"):
             raise ValueError(f"planning must be 'estimate' or 'measure', got {planning!r}")
+        if precision not in ("single", "double"):
+            raise ValueError(f"precision must be 'single' or 'double', got {precision!r}")
+        self.dtype = np.dtype(np.float32 if precision == "single" else np.float64)
+        complex_dtype = np.complex64 if precision == "single" else np.complex128
         self.shape = tuple(int(n) for n in shape)
         self.spectrum_shape = (*self.shape[:2], self.shape[2] // 2 + 1)
         self.threads = threads
         if pyfftw is not None:
-            real = pyfftw.empty_aligned(self.shape, dtype="float64")
-            spec = pyfftw.empty_aligned(self.spectrum_shape, dtype="complex128")
+            real = pyfftw.empty_aligned(self.shape, dtype=self.dtype)
+            spec = pyfftw.empty_aligned(self.spectrum_shape, dtype=complex_dtype)
             kwargs = dict(threads=threads, planner_effort=f"FFTW_{planning.upper()}")
             self._forward = pyfftw.builders.rfftn(real, **kwargs)
             self._inverse = pyfftw.builders.irfftn(spec, s=self.shape, **kwargs)
 
-    def forward(self, grid: NDArray[np.float64]) -> NDArray[np.complex128]:
+    def forward(self, grid: NDArray[np.floating]) -> NDArray[np.complexfloating]:
         """Spectrum of a real grid of shape :attr:`shape`."""
         if pyfftw is None:
-            return scipy.fft.rfftn(grid, workers=self.threads)
+            return scipy.fft.rfftn(grid.astype(self.dtype, copy=False), workers=self.threads)
         return self._forward(grid)
 
-    def inverse(self, spectrum: NDArray[np.complex128]) -> NDArray[np.float64]:
+    def inverse(self, spectrum: NDArray[np.complexfloating]) -> NDArray[np.floating]:
         """Real grid of shape :attr:`shape` from a half spectrum."""
         if pyfftw is None:
             return scipy.fft.irfftn(spectrum, s=self.shape, workers=self.threads)
@@ -82,6 +94,11 @@ class RealFFT3:
 
 
 @lru_cache(maxsize=8)
-def fft_plan(shape: tuple[int, int, int], threads: int = 1, planning: str = "estimate") -> RealFFT3:
+def fft_plan(
+    shape: tuple[int, int, int],
+    threads: int = 1,
+    planning: str = "estimate",
+    precision: str = "double",
+) -> RealFFT3:
     """Cached :class:`RealFFT3` for ``shape`` (plans are reused across calls)."""
-    return RealFFT3(shape, threads=threads, planning=planning)
+    return RealFFT3(shape, threads=threads, planning=planning, precision=precision)

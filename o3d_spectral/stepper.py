@@ -261,12 +261,17 @@ class SpectralStepper:
         )
         if shape not in self._target_spectra:
             check_memory(shape, self.option.max_grid_memory, "voxel grids")
-            fft = fft_plan(shape, planning=self.option.fft_planning)
-            padded = np.zeros(shape)
+            fft = self._plan(shape)
+            padded = np.zeros(shape, dtype=fft.dtype)
             t = self.target_box.shape
             padded[: t[0], : t[1], : t[2]] = self._target_grid
             self._target_spectra[shape] = np.array(fft.forward(padded))
-        return fft_plan(shape, planning=self.option.fft_planning), self._target_spectra[shape]
+        return self._plan(shape), self._target_spectra[shape]
+
+    def _plan(self, shape: tuple[int, int, int]) -> RealFFT3:
+        return fft_plan(
+            shape, planning=self.option.fft_planning, precision=self.option.fft_precision
+        )
 
     def _translation_cost(self, grid: NDArray[np.float64], box: Box) -> float:
         """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice."""
@@ -320,7 +325,7 @@ class SpectralStepper:
         # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
         box = self._moving_box(moving, centre)
         fft, G = self._fft(box)
-        buffer = np.zeros(fft.shape)
+        buffer = np.zeros(fft.shape, dtype=fft.dtype)
         splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
         norm = np.linalg.norm(buffer)
         buffer /= norm
