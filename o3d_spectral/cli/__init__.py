@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-COMMANDS = ("register", "demo", "suite", "eval", "report")
+COMMANDS = ("register", "demo", "suite", "eval", "report", "servo")
 
 
 def build_parser() -> argparse.ArgumentParser:
