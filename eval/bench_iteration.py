@@ -71,7 +71,7 @@ def main() -> None:
     run_medians = [1000.0 * float(np.median(one_run())) for _ in range(args.runs)]
     iteration_ms = float(np.median(run_medians))
 
-    shape = next(iter(stepper._target_spectra))  # the FFT grid the iterations used
+    shape = stepper.fft_shape(moving)  # the FFT grid the iterations used
     plan = fft.fft_plan(shape, planning=option.fft_planning)
     grid = np.random.default_rng(0).random(shape)
     spectrum = np.array(plan.forward(grid))

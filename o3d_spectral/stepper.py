@@ -254,11 +254,16 @@ class SpectralStepper:
         offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
         return Box(self.lattice, offset.astype(np.int64), (side, side, side))
 
-    def _fft(self, moving_box: Box) -> tuple[RealFFT3, NDArray[np.complex128]]:
-        shape = tuple(
+    def fft_shape(self, moving: MovingCloud) -> tuple[int, int, int]:
+        """Shape of the FFT grid on which ``moving`` is correlated with the fixed cloud."""
+        moving_box = self._moving_box(moving, moving.centroid)
+        return tuple(
             next_fast_len(a + b)
             for a, b in zip(self.target_box.shape, moving_box.shape, strict=True)
         )
+
+    def _fft(self, moving: MovingCloud) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
+        shape = self.fft_shape(moving)
         if shape not in self._target_spectra:
             check_memory(shape, self.option.max_grid_memory, "voxel grids")
             fft = self._plan(shape)
@@ -324,7 +329,7 @@ class SpectralStepper:
                 raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
         # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
         box = self._moving_box(moving, centre)
-        fft, G = self._fft(box)
+        fft, G = self._fft(moving)
         buffer = np.zeros(fft.shape, dtype=fft.dtype)
         splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
         norm = np.linalg.norm(buffer)
