@@ -58,12 +58,14 @@ class ServoOptions:
     period: float = 0.1
     max_time: float = 20.0
     voxel_size: float = 0.01
-    translation_tolerance: float = 1e-3
-    rotation_tolerance: float = np.deg2rad(0.2)
+    translation_tolerance: float = 5e-4
+    rotation_tolerance: float = np.deg2rad(0.05)
     damping: float = 0.01
     limit_margin: float = np.deg2rad(1.0)
     registration: SpectralRegistrationOption = field(
-        default_factory=lambda: SpectralRegistrationOption(target_viewpoint=None)
+        default_factory=lambda: SpectralRegistrationOption(
+            target_viewpoint=None, egi_smoothing=(0.3,)
+        )
     )
 
     def __post_init__(self) -> None:

@@ -39,6 +39,7 @@ WORLD_FROM_BASE = np.array(
 )
 
 _MAX_TRIES = 500
+_ROLLS = np.linspace(-np.pi / 2, np.pi / 2, 91)  # candidate start rolls, radians
 
 
 @dataclass(frozen=True)
@@ -200,10 +201,11 @@ def sample_start(
     """A random reachable start pose far from ``desired``, the object partly out of view.
 
     The optical centre moves by a random offset of length in ``translation`` (metres, its
-    height above the table kept above 0.3 m); the camera aims at a point up to 15 cm from
-    the desired aim on the table, with a random roll about its optical axis. Accepted
-    when the angle to the desired orientation lies in ``rotation`` (radians), the share
-    of the object of interest inside the image in ``visible``, and inverse kinematics
+    height above the table kept above 0.3 m); the camera aims at a point of the table 10
+    to 25 cm from the desired aim, which pushes the object of interest towards the image
+    border, and rolls about its optical axis by an angle drawn among those that put the
+    angle to the desired orientation in ``rotation`` (radians). Accepted when the share of
+    the object of interest inside the image lies in ``visible`` and inverse kinematics
     reaches the pose ``margin`` radians inside every joint limit.
 
     Returns
@@ -218,12 +220,17 @@ def sample_start(
         start_eye = eye + offset
         if start_eye[2] < 0.3:
             continue
-        start_aim = aim + np.append(rng.uniform(-0.15, 0.15, size=2), 0.0)
+        direction = rng.uniform(0.0, 2.0 * np.pi)
+        start_aim = aim + rng.uniform(0.10, 0.25) * np.array([np.cos(direction),
+                                                              np.sin(direction), 0.0])
         pose = look_at(start_eye, start_aim)
-        pose[:3, :3] = pose[:3, :3] @ so3.exp([0.0, 0.0, rng.uniform(-np.pi / 3, np.pi / 3)])
-        angle = so3.rotation_angle(desired[:3, :3].T @ pose[:3, :3])
-        if not rotation[0] <= angle <= rotation[1]:
+        angles = [so3.rotation_angle(desired[:3, :3].T @ pose[:3, :3] @ so3.exp([0, 0, r]))
+                  for r in _ROLLS]
+        rolls = _ROLLS[(rotation[0] <= np.array(angles)) & (np.array(angles) <= rotation[1])]
+        if len(rolls) == 0:
             continue
+        pose[:3, :3] = pose[:3, :3] @ so3.exp([0.0, 0.0, rng.choice(rolls)])
+        angle = so3.rotation_angle(desired[:3, :3].T @ pose[:3, :3])
         fraction = sensor.visible_fraction(scene.target_object, pose)
         if not visible[0] <= fraction <= visible[1]:
             continue
