@@ -135,3 +135,10 @@ def test_arm_rejects_bad_arguments():
         servo.Arm(hand_eye=np.ones((4, 4)))
     with pytest.raises(ValueError, match="period"):
         servo.ServoOptions(period=0.0)
+
+
+def test_servo_command_rejects_bad_trials(tmp_path, capsys):
+    from o3d_spectral.cli import main
+
+    assert main(["servo", "--trials", "0", "--out", str(tmp_path)]) == 2
+    assert "--trials" in capsys.readouterr().err

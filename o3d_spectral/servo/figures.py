@@ -12,7 +12,7 @@ from .scene import Sensor, Tabletop
 
 __all__ = ["plot_convergence", "plot_trajectory", "plot_snapshots"]
 
-_MAX_POINTS = 4000  # per cloud in the snapshots
+_MAX_POINTS = 3000  # per cloud in the snapshots
 
 
 def _save(fig, path: str | Path) -> Path:

@@ -178,8 +178,8 @@ class Arm:
             is the camera's body twist, ``d/dt world_from_camera = world_from_camera @
             [[hat(w), v], [0, 0]]``.
         """
-        q = self._set(q)
-        world_from_flange = self.flange_pose(q)
+        world_from_flange = self.flange_pose(q)  # also sets (and checks) the joints
+        q = np.asarray(q, dtype=np.float64)
         # pybullet takes the point in the link frame (measured: it agrees with finite
         # differences and with pinocchio there, not at the centre-of-mass frame).
         local = self.hand_eye[:3, 3].tolist()
