@@ -50,6 +50,8 @@ __all__ = [
     "make_instance",
     "model_cloud",
     "sample_rotation",
+    "table_mesh",
+    "tabletop",
 ]
 
 CONDITIONS: tuple[str, ...] = ("full", "partial", "occluded", "cluttered")
@@ -597,19 +599,44 @@ def _place_on_table(
     return placed_names, poses
 
 
-def _table() -> o3d.geometry.TriangleMesh:
+def table_mesh() -> o3d.geometry.TriangleMesh:
+    """The support table: a 3 cm slab whose top face is the plane z = 0, centred on the
+    origin (world frame, metres)."""
     table = o3d.geometry.TriangleMesh.create_box(*_TABLE_SIZE, 0.03)
     table.translate([-_TABLE_SIZE[0] / 2, -_TABLE_SIZE[1] / 2, -0.03])
     table.compute_triangle_normals()
     return table
 
 
+def tabletop(
+    names: list[str], rng: np.random.Generator
+) -> tuple[list[str], list[np.ndarray], list[o3d.geometry.TriangleMesh]]:
+    """Bundled models resting on :func:`table_mesh` without interpenetration.
+
+    Parameters
+    ----------
+    names : list of str
+        Models to place, the first near the table's centre, the others around it.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    placed : list of str
+        The models that fit (the first always does).
+    poses : list of ndarray, shape (4, 4)
+        Their world-from-model poses.
+    meshes : list of open3d.geometry.TriangleMesh
+        The models moved to those poses (world frame, metres).
+    """
+    placed, poses = _place_on_table(names, rng)
+    return placed, poses, [_moved(_mesh(n), p) for n, p in zip(placed, poses, strict=True)]
+
+
 def _cluttered(name: str, rng: np.random.Generator, options: SceneOptions) -> Instance:
     others = [n for n in model_names() if n != name]
     count = int(rng.integers(options.clutter_objects[0], options.clutter_objects[1] + 1))
     chosen = [name] + [str(n) for n in rng.choice(others, size=count - 1, replace=False)]
-    names, poses = _place_on_table(chosen, rng)
-    meshes = [_moved(_mesh(n), p) for n, p in zip(names, poses, strict=True)]
+    names, poses, meshes = tabletop(chosen, rng)
     obj = meshes[0]
     center = np.asarray(obj.get_center())
     # Look across the other objects at the chosen one half of the time, so that it is
@@ -640,7 +667,7 @@ def _cluttered(name: str, rng: np.random.Generator, options: SceneOptions) -> In
         if len(alone) == 0:
             continue
         labels = hit_labels(
-            [_table(), *meshes],
+            [table_mesh(), *meshes],
             options.intrinsics,
             pose,
             pixels=alone,
@@ -659,7 +686,7 @@ def _cluttered(name: str, rng: np.random.Generator, options: SceneOptions) -> In
     }
     return _scan_instance(
         name,
-        [_table(), *meshes],
+        [table_mesh(), *meshes],
         [BACKGROUND, *range(len(meshes))],
         pose,
         keep="all",

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from .. import so3
 from ..camera import CameraIntrinsics, DepthNoise, look_at, scan_meshes
 from ..data import model_names
-from ..scenes import _mesh, _moved, _place_on_table, _table, sample_surface
+from ..scenes import sample_surface, table_mesh, tabletop
 from .robot import Arm
 
 __all__ = [
@@ -79,9 +79,8 @@ def make_tabletop(rng: np.random.Generator, *, objects: tuple[int, int] = (3, 6)
         raise ValueError(f"objects must satisfy 1 <= min <= max <= {len(available)}, got {objects}")
     count = int(rng.integers(objects[0], objects[1] + 1))
     chosen = [str(n) for n in rng.choice(available, size=count, replace=False)]
-    names, poses = _place_on_table(chosen, rng)
-    meshes = [_moved(_mesh(n), p) for n, p in zip(names, poses, strict=True)]
-    return Tabletop(tuple(names), (_table(), *meshes))
+    names, _, meshes = tabletop(chosen, rng)
+    return Tabletop(tuple(names), (table_mesh(), *meshes))
 
 
 @dataclass(frozen=True)
