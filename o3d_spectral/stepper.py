@@ -265,6 +265,8 @@ class SpectralStepper:
     def _fft(self, moving: MovingCloud) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
         shape = self.fft_shape(moving)
         if shape not in self._target_spectra:
+            if len(self._target_spectra) >= 4:  # servoing meets many shapes: keep the last few
+                del self._target_spectra[next(iter(self._target_spectra))]
             check_memory(shape, self.option.max_grid_memory, "voxel grids")
             fft = self._plan(shape)
             padded = np.zeros(shape, dtype=fft.dtype)
