@@ -44,8 +44,9 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
 
     Parameters
     ----------
-    cloud : open3d.geometry.PointCloud, open3d.t.geometry.PointCloud or ndarray
-        A numpy array must have shape (N, 3) (points) or (N, 6) (points, then normals).
+    cloud : open3d.geometry.PointCloud, open3d.t.geometry.PointCloud, ndarray or CloudArrays
+        A numpy array must have shape (N, 3) (points) or (N, 6) (points, then normals);
+        a CloudArrays is returned as it is.
     name : str
         Argument name used in error messages.
 
@@ -56,6 +57,8 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
     ValueError
         For an empty cloud, a wrong array shape, or non-finite coordinates or normals.
     """
+    if isinstance(cloud, CloudArrays):  # already converted and checked
+        return cloud
     if isinstance(cloud, o3d.geometry.PointCloud):
         points = np.asarray(cloud.points, dtype=np.float64).copy()
         normals = np.asarray(cloud.normals, dtype=np.float64).copy()

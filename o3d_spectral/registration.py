@@ -261,6 +261,7 @@ def registration_spectral(
     option = option or SpectralRegistrationOption()
     criteria = criteria or SpectralConvergenceCriteria()
     init = _check_transformation(init)
+    source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     stepper = SpectralStepper(target, voxel_size, option=option)
     moving = stepper.moving(source, "source", transformation=init)
 
@@ -289,8 +290,8 @@ def registration_spectral(
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = option.max_correspondence_distance or voxel_size
     evaluation = o3d.pipelines.registration.evaluate_registration(
-        to_legacy(as_arrays(source, "source")),
-        to_legacy(as_arrays(target, "target")),
+        to_legacy(source),
+        to_legacy(target),
         distance,
         transformation,
     )

@@ -19,6 +19,7 @@ as visual servoing needs; :func:`o3d_spectral.registration_spectral` iterates
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -60,6 +61,10 @@ class MovingCloud:
     centroid: NDArray[np.float64]
     radius: float
     coefficients: NDArray[np.float64]
+
+    def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
+        """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
+        return (self.points - self.centroid) @ rotation.T + self.centroid + translation
 
 
 @dataclass(frozen=True)
@@ -169,7 +174,6 @@ class SpectralStepper:
         raw = self._egi(prepared.normals)
         self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         self.target_points = points
-        self._target_tree = cKDTree(points)
         self.viewpoint = self._viewpoint(prepared)
         self.level = 0
 
@@ -184,6 +188,11 @@ class SpectralStepper:
         has_normal = np.any(target.point_normals != 0.0, axis=1)
         facing = np.einsum("ij,ij->i", target.point_normals, sensor - target.points) > 0.0
         return sensor if facing[has_normal].mean() >= 0.9 else None
+
+    @cached_property
+    def _target_tree(self) -> cKDTree:
+        """KD-tree of the fixed cloud's voxels, built on first use (hypothesis ranking)."""
+        return cKDTree(self.target_points)
 
     @property
     def levels(self) -> int:
@@ -318,7 +327,7 @@ class SpectralStepper:
         R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         T = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
         centre = moving.centroid + T
-        moved = (moving.points - moving.centroid) @ R.T + centre
+        moved = moving.posed(R, T)
         raw_egi = moving.coefficients
         if self.viewpoint is not None:  # the target is one view: keep what faces its sensor
             rays = self.viewpoint - moved
@@ -391,8 +400,7 @@ class SpectralStepper:
         Open3D's ``fitness`` on the down-sampled clouds, at the pose ``x -> R (x - c) + c + T``;
         used to rank rotation hypotheses.
         """
-        R = np.asarray(rotation, dtype=np.float64)
-        moved = (moving.points - moving.centroid) @ R.T + moving.centroid + translation
+        moved = moving.posed(np.asarray(rotation, dtype=np.float64), translation)
         distances, _ = self._target_tree.query(moved, distance_upper_bound=self.voxel_size)
         return float(np.mean(np.isfinite(distances)))
 
