@@ -248,8 +248,10 @@ def registration_spectral(
 
     Notes
     -----
-    The rotation search is local (a gradient ascent from ``init``): it reliably
-    corrects rotations up to a few tens of degrees. The translation is found globally.
+    By default the rotation search is local (the paper's gradient ascent from ``init``):
+    it reliably corrects rotations up to a few tens of degrees. With
+    ``option.rotation_search="global"`` it starts from the peaks of the rotation
+    correlation over all of SO(3) instead. The translation is always found globally.
 
     Examples
     --------
