@@ -34,13 +34,21 @@ class SpectralRegistrationOption:
         step) rather than by its mean (the paper's plain gradient, scaled).
     rotation_search : {"local", "global"}
         ``"local"``: the paper's gradient ascent from ``init``. ``"global"``: evaluate the
-        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`), climb from
-        each of its ``hypotheses`` highest peaks for ``hypothesis_iterations``, keep the
-        one whose result fits best, and climb on to convergence.
+        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`); from each of
+        its ``hypotheses`` highest peaks, one evaluation of the law (which finds the
+        translation globally); climb the ``climbs`` best-scoring ones for
+        ``hypothesis_iterations``; climb the best of those on to convergence.
     hypotheses : int
         Peaks of the global correlation tried.
+    climbs : int
+        Hypotheses climbed after their first evaluation.
     hypothesis_iterations : int
-        Iterations of the law from each hypothesis before they are ranked.
+        Iterations of the law from each climbed hypothesis before they are ranked again.
+    hypothesis_score : {"translation_peak", "fitness"}
+        How hypotheses are ranked: the height of their phase-correlation peak (how well
+        the rotated moving grid matches the fixed one under any shift; spectral, no
+        nearest neighbours), or Open3D's fitness on the down-sampled clouds at the
+        rotation and the translation the correlation found.
     search_samples : int or None
         Samples of each Euler angle in the global grid (``4 * bandwidth`` when None:
         steps of 180 / (2B) degrees in alpha and gamma).
@@ -63,6 +71,12 @@ class SpectralRegistrationOption:
         How points fill the voxel grid; ``"binary"`` is the paper's.
     peak_width : float
         Width of the Gaussian window of the phase correlation, voxels (sub-voxel fit).
+    translation_window : int or None
+        After the first, global, phase correlation of a climb, correlate against a block
+        of the fixed grid around where the last correlation put the moving cloud, with
+        this many voxels of margin on each side (used only where it makes the FFT under
+        half as large: a small object in a large scene). None: the whole fixed grid every
+        iteration (the paper).
     max_correspondence_distance : float or None
         Distance (metres) at which ``fitness``, ``inlier_rmse`` and
         ``correspondence_set`` of the result are measured; the voxel size when None.
@@ -91,8 +105,10 @@ class SpectralRegistrationOption:
     lambda_r: float = 0.5
     preconditioned: bool = True
     rotation_search: str = "local"
-    hypotheses: int = 8
+    hypotheses: int = 32
+    climbs: int = 4
     hypothesis_iterations: int = 12
+    hypothesis_score: str = "translation_peak"
     search_samples: int | None = None
     max_rotation_step: float = 0.35
     egi_binned: bool = False
@@ -101,6 +117,7 @@ class SpectralRegistrationOption:
     egi_voxel_size: float | None = None
     voxel_weighting: str = "trilinear"
     peak_width: float = 1.0
+    translation_window: int | None = 8
     max_correspondence_distance: float | None = None
     normal_radius: float | None = None
     camera_location: tuple[float, float, float] | None = None
@@ -129,6 +146,15 @@ class SpectralRegistrationOption:
             )
         if int(self.hypotheses) != self.hypotheses or self.hypotheses < 2:
             raise ValueError(f"hypotheses must be an integer >= 2, got {self.hypotheses}")
+        if int(self.climbs) != self.climbs or not 1 <= self.climbs <= self.hypotheses:
+            raise ValueError(
+                f"climbs must be an integer in [1, hypotheses], got {self.climbs}"
+            )
+        if self.hypothesis_score not in ("translation_peak", "fitness"):
+            raise ValueError(
+                "hypothesis_score must be 'translation_peak' or 'fitness', got "
+                f"{self.hypothesis_score!r}"
+            )
         if self.hypothesis_iterations < 1:
             raise ValueError(
                 f"hypothesis_iterations must be >= 1, got {self.hypothesis_iterations}"
@@ -140,6 +166,12 @@ class SpectralRegistrationOption:
         if isinstance(self.target_viewpoint, str) and self.target_viewpoint != "auto":
             raise ValueError(
                 f"target_viewpoint must be 'auto', a point or None, got {self.target_viewpoint!r}"
+            )
+        if self.translation_window is not None and not (
+            int(self.translation_window) == self.translation_window and self.translation_window >= 2
+        ):
+            raise ValueError(
+                f"translation_window must be an integer >= 2 or None, got {self.translation_window}"
             )
         if self.fft_planning not in ("estimate", "measure"):
             raise ValueError(

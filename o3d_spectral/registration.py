@@ -17,6 +17,9 @@ from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["IterationRecord", "SpectralRegistrationResult", "registration_spectral"]
 
+#: Rotations further apart than this (radians) are distinct hypotheses (confidence).
+DISTINCT_ANGLE = np.deg2rad(10.0)
+
 
 @dataclass(frozen=True)
 class IterationRecord:
@@ -80,11 +83,13 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     translation_peak : float
         Final phase-correlation peak height in [0, 1], a confidence figure.
     hypotheses : list of (ndarray (4, 4), float)
-        Global search only: every rotation hypothesis after its first climb, with its
-        fitness on the down-sampled clouds, best first (the returned transformation is
-        the first, climbed to convergence).
+        Global search only: the ``option.climbs`` hypotheses that were climbed, each
+        after ``option.hypothesis_iterations`` iterations, with its score
+        (``option.hypothesis_score``), best first (the returned transformation is the
+        first, climbed on to convergence).
     confidence : float
-        Global search only: best minus second-best hypothesis fitness (0 when local).
+        Global search only: the best score minus that of the best hypothesis ending in a
+        distinct rotation (over 10 degrees away); 0 when local.
     """
 
     def __init__(self) -> None:
@@ -123,12 +128,14 @@ class _Pose:
 
 @dataclass
 class _Climb:
-    """One run of the control law: its pose, smoothing level and history."""
+    """One run of the control law: its pose, smoothing level, history, and where the last
+    phase correlation put the moving cloud's centroid (None before the first)."""
 
     pose: _Pose
     level: int = 0
     history: list[IterationRecord] = field(default_factory=list)
     converged: bool = False
+    predicted: NDArray[np.float64] | None = None
 
 
 def _climb(
@@ -145,7 +152,10 @@ def _climb(
     for _ in range(iterations):
         if climb.converged:
             return
-        evaluation = stepper.evaluate(moving, pose.R, pose.T, level=climb.level)
+        evaluation = stepper.evaluate(
+            moving, pose.R, pose.T, level=climb.level, around=climb.predicted
+        )
+        climb.predicted = moving.centroid + pose.T + evaluation.translation
         t_norm = float(np.linalg.norm(evaluation.translation))
         r_norm = float(np.linalg.norm(evaluation.rotation))
         climb.history.append(
@@ -173,6 +183,25 @@ def _climb(
         delta_rotation, delta_translation = stepper.increments(evaluation)
         pose.T = pose.T + delta_translation
         pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
+
+
+def _score(stepper: SpectralStepper, moving: MovingCloud, climb: _Climb) -> float:
+    """How well a climb's last evaluation fits, by ``option.hypothesis_score``: the
+    phase-correlation peak there, or the fitness at its rotation and predicted position."""
+    last = climb.history[-1]
+    if stepper.option.hypothesis_score == "translation_peak":
+        return last.translation_peak
+    return stepper.fitness(moving, last.rotation, climb.predicted - moving.centroid)
+
+
+def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
+    """Best score minus the best score of a climb ending over ``DISTINCT_ANGLE`` away
+    (in rotation) from the best; the best score when every climb ends near it."""
+    best_score, best = ranked[0]
+    for score, climb in ranked[1:]:
+        if so3.rotation_angle(climb.pose.R.T @ best.pose.R) > DISTINCT_ANGLE:
+            return best_score - score
+    return best_score
 
 
 def _starting_rotations(
@@ -270,15 +299,19 @@ def registration_spectral(
     tolerance = (criteria.translation_tolerance or 0.02 * voxel_size, criteria.rotation_tolerance)
     climbs = [_Climb(_Pose(moving.centroid, R)) for R in _starting_rotations(stepper, moving)]
     result = SpectralRegistrationResult()
-    if len(climbs) > 1:  # a first short climb from every hypothesis, then rank them
-        budget = min(option.hypothesis_iterations, criteria.max_iteration)
-        for climb in climbs:
-            _climb(stepper, moving, climb, budget, tolerance, init, start)
-        scores = [stepper.fitness(moving, c.pose.R, c.pose.T) for c in climbs]
-        ranked = sorted(zip(scores, climbs, strict=True), key=lambda pair: -pair[0])
-        climbs = [climb for _, climb in ranked]
+    if len(climbs) > 1:
+        # One evaluation from every peak (its translation found globally), the best few
+        # climbed a little, then the best of those climbed to convergence.
+        for budget, keep in ((1, option.climbs), (option.hypothesis_iterations, None)):
+            budget = min(budget, criteria.max_iteration)
+            for climb in climbs:
+                _climb(stepper, moving, climb, budget - len(climb.history), tolerance, init,
+                       start)
+            scores = [_score(stepper, moving, climb) for climb in climbs]
+            ranked = sorted(zip(scores, climbs, strict=True), key=lambda pair: -pair[0])
+            climbs = [climb for _, climb in ranked][:keep]
         result.hypotheses = [(climb.pose.matrix() @ init, score) for score, climb in ranked]
-        result.confidence = ranked[0][0] - ranked[1][0]
+        result.confidence = _confidence(ranked)
     best = climbs[0]
     _climb(stepper, moving, best, criteria.max_iteration - len(best.history), tolerance, init,
            start)

@@ -170,7 +170,7 @@ class SpectralStepper:
         check_memory(self.target_box.shape, self.option.max_grid_memory, "target")
         grid = splat(points, self.target_box, mode=self.option.voxel_weighting)
         self._target_grid = grid / np.linalg.norm(grid)
-        self._target_spectra: dict[tuple[int, int, int], NDArray[np.complex128]] = {}
+        self._target_spectra: dict[tuple, NDArray[np.complexfloating]] = {}
         raw = self._egi(prepared.normals)
         self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         self.target_points = points
@@ -263,26 +263,68 @@ class SpectralStepper:
         offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
         return Box(self.lattice, offset.astype(np.int64), (side, side, side))
 
-    def fft_shape(self, moving: MovingCloud) -> tuple[int, int, int]:
-        """Shape of the FFT grid on which ``moving`` is correlated with the fixed cloud."""
-        moving_box = self._moving_box(moving, moving.centroid)
-        return tuple(
-            next_fast_len(a + b)
-            for a, b in zip(self.target_box.shape, moving_box.shape, strict=True)
-        )
+    def _fft_shape(self, fixed: Box, moving: Box) -> tuple[int, int, int]:
+        return tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, moving.shape, strict=True))
 
-    def _fft(self, moving: MovingCloud) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
-        shape = self.fft_shape(moving)
-        if shape not in self._target_spectra:
-            if len(self._target_spectra) >= 4:  # servoing meets many shapes: keep the last few
+    def fft_shape(self, moving: MovingCloud) -> tuple[int, int, int]:
+        """Shape of the FFT grid on which ``moving`` is correlated with the whole fixed cloud."""
+        return self._fft_shape(self.target_box, self._moving_box(moving, moving.centroid))
+
+    def search_box(self, moving: MovingCloud, around: ArrayLike | None = None) -> Box:
+        """The block of the fixed grid that ``moving`` is phase-correlated with.
+
+        The whole fixed grid when ``around`` is None or ``option.translation_window`` is
+        None (a global translation search). Otherwise a cube of the moving grid's side
+        plus ``translation_window`` voxels on each side, centred near ``around`` (metres,
+        where the moving cloud's centroid is expected: snapped to a coarse step so that
+        nearby predictions share one block and its cached spectrum), when its FFT is less
+        than half the whole grid's.
+        """
+        margin = self.option.translation_window
+        if around is None or margin is None:
+            return self.target_box
+        moving_box = self._moving_box(moving, moving.centroid)
+        side = moving_box.shape[0] + 2 * margin
+        snap = max(margin // 2, 1)
+        centre = (np.asarray(around, dtype=np.float64) - self.lattice.origin) / self.voxel_size
+        offset = (np.round(centre / snap) * snap).astype(np.int64) - side // 2
+        window = Box(self.lattice, offset, (side, side, side))
+        whole = np.prod(self._fft_shape(self.target_box, moving_box), dtype=np.float64)
+        windowed = np.prod(self._fft_shape(window, moving_box), dtype=np.float64)
+        return window if windowed < 0.5 * whole else self.target_box
+
+    def _fixed_grid(self, box: Box) -> NDArray[np.float64]:
+        """The unit-norm fixed grid on ``box`` (zero outside the fixed cloud's box)."""
+        if box is self.target_box:
+            return self._target_grid
+        out = np.zeros(box.shape)
+        lo = np.maximum(box.offset, self.target_box.offset)
+        hi = np.minimum(box.offset + box.shape, self.target_box.offset + self.target_box.shape)
+        if np.all(hi > lo):
+            a, b = lo - box.offset, hi - box.offset
+            c, d = lo - self.target_box.offset, hi - self.target_box.offset
+            out[a[0] : b[0], a[1] : b[1], a[2] : b[2]] = self._target_grid[
+                c[0] : d[0], c[1] : d[1], c[2] : d[2]
+            ]
+        return out
+
+    def _fft(
+        self, fixed: Box, moving: Box
+    ) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
+        """The FFT plan for correlating ``moving`` with ``fixed``, and the fixed block's
+        spectrum (cached: a few blocks and shapes recur over a registration)."""
+        shape = self._fft_shape(fixed, moving)
+        key = (tuple(fixed.offset), fixed.shape, shape)
+        if key not in self._target_spectra:
+            if len(self._target_spectra) >= 8:  # servoing meets many shapes: keep the last few
                 del self._target_spectra[next(iter(self._target_spectra))]
             check_memory(shape, self.option.max_grid_memory, "voxel grids")
             fft = self._plan(shape)
             padded = np.zeros(shape, dtype=fft.dtype)
-            t = self.target_box.shape
-            padded[: t[0], : t[1], : t[2]] = self._target_grid
-            self._target_spectra[shape] = np.array(fft.forward(padded))
-        return self._plan(shape), self._target_spectra[shape]
+            f = fixed.shape
+            padded[: f[0], : f[1], : f[2]] = self._fixed_grid(fixed)
+            self._target_spectra[key] = np.array(fft.forward(padded))
+        return self._plan(shape), self._target_spectra[key]
 
     def _plan(self, shape: tuple[int, int, int]) -> RealFFT3:
         return fft_plan(
@@ -309,6 +351,7 @@ class SpectralStepper:
         translation: ArrayLike | None = None,
         *,
         level: int = -1,
+        around: ArrayLike | None = None,
     ) -> Evaluation:
         """Full corrections for the moving cloud at pose ``(rotation, translation)``.
 
@@ -323,6 +366,10 @@ class SpectralStepper:
             ``R (x - c) + c + T``.
         level : int
             EGI smoothing level (index into ``option.egi_smoothing``; the finest by default).
+        around : array_like, shape (3,), optional
+            Where the moving cloud's centroid is expected (metres, e.g. the previous
+            evaluation's prediction): the translation is then searched in a window of the
+            fixed grid around it (:meth:`search_box`); anywhere when omitted.
         """
         R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         T = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
@@ -340,16 +387,17 @@ class SpectralStepper:
                 raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
         # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
         box = self._moving_box(moving, centre)
-        fft, G = self._fft(moving)
+        fixed = self.search_box(moving, around)
+        fft, G = self._fft(fixed, box)
         buffer = np.zeros(fft.shape, dtype=fft.dtype)
         splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
         norm = np.linalg.norm(buffer)
         buffer /= norm
         F = fft.forward(buffer)
         peak = cross_power_peak(
-            F, G, fft, sigma=self.option.peak_width, positive_below=self.target_box.shape
+            F, G, fft, sigma=self.option.peak_width, positive_below=fixed.shape
         )
-        shift = (self.target_box.offset - box.offset + peak.shift) * self.voxel_size
+        shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
         cost_t = self._translation_cost(
             buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box
         )

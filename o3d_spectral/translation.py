@@ -45,7 +45,9 @@ class PeakEstimate:
 
 
 @lru_cache(maxsize=8)
-def gaussian_window(shape: tuple[int, int, int], sigma: float) -> NDArray[np.float64]:
+def gaussian_window(
+    shape: tuple[int, int, int], sigma: float, dtype: type = np.float64
+) -> NDArray[np.floating]:
     """Gaussian window on a half spectrum: ``exp(-2 pi^2 sigma^2 |nu|^2)``.
 
     Parameters
@@ -54,6 +56,8 @@ def gaussian_window(shape: tuple[int, int, int], sigma: float) -> NDArray[np.flo
         Real-space grid shape.
     sigma : float
         Width of the resulting correlation peak, voxels (0: no window).
+    dtype : numpy floating type
+        Precision of the window (that of the spectra it multiplies).
 
     Returns
     -------
@@ -65,6 +69,7 @@ def gaussian_window(shape: tuple[int, int, int], sigma: float) -> NDArray[np.flo
         indexing="ij", sparse=True,
     )
     window = np.exp(-2.0 * np.pi**2 * sigma**2 * (nu[0] ** 2 + nu[1] ** 2 + nu[2] ** 2))
+    window = window.astype(dtype)
     window.flags.writeable = False
     return window
 
@@ -124,7 +129,7 @@ def cross_power_peak(
     cross = G * np.conj(F)
     magnitude = np.abs(cross)
     cross /= np.maximum(magnitude, eps * magnitude.max() + 1e-300)
-    window = gaussian_window(fft.shape, sigma)
+    window = gaussian_window(fft.shape, sigma, magnitude.dtype.type)
     cross *= window
     delta = fft.inverse(cross)
     index = np.unravel_index(int(np.argmax(delta)), delta.shape)
@@ -132,9 +137,9 @@ def cross_power_peak(
     limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
     integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
     # Height of a perfect match: the window's sum over the full spectrum over the grid size.
-    full_sum = 2.0 * window.sum() - window[..., 0].sum()
+    full_sum = 2.0 * window.sum(dtype=np.float64) - window[..., 0].sum(dtype=np.float64)
     if fft.shape[2] % 2 == 0:
-        full_sum -= window[..., -1].sum()
+        full_sum -= window[..., -1].sum(dtype=np.float64)
     peak = float(delta[index] * np.prod(shape) / full_sum)
     return PeakEstimate(integer + _subvoxel(delta, index), peak)
 

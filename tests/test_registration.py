@@ -189,6 +189,12 @@ def test_option_and_criteria_validate_their_values():
         o3d_spectral.SpectralRegistrationOption(voxel_weighting="nearest")
     with pytest.raises(ValueError, match="max_iteration"):
         o3d_spectral.SpectralConvergenceCriteria(max_iteration=0)
+    with pytest.raises(ValueError, match="translation_window"):
+        o3d_spectral.SpectralRegistrationOption(translation_window=1)
+    with pytest.raises(ValueError, match="climbs"):
+        o3d_spectral.SpectralRegistrationOption(hypotheses=4, climbs=5)
+    with pytest.raises(ValueError, match="hypothesis_score"):
+        o3d_spectral.SpectralRegistrationOption(hypothesis_score="rmse")
     option = o3d_spectral.SpectralRegistrationOption(egi_smoothing=0.2)
     assert option.egi_smoothing == (0.2,)
     assert "bandwidth=16" in repr(o3d_spectral.SpectralRegistrationOption())
@@ -225,8 +231,9 @@ def test_global_search_recovers_a_large_rotation():
     result = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL,
                                                 option=option)
     _accurate(result, T, source.points)
-    assert 2 <= len(result.hypotheses) <= option.hypotheses
+    assert len(result.hypotheses) == option.climbs
     scores = [score for _, score in result.hypotheses]
-    assert scores == sorted(scores, reverse=True) and result.confidence >= 0
+    assert scores == sorted(scores, reverse=True)
+    assert 0 <= result.confidence <= scores[0]
     local = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL)
     assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here

@@ -51,3 +51,42 @@ def test_step_increments_follow_the_gains():
 def test_stepper_rejects_bad_voxel_size():
     with pytest.raises(ValueError, match="voxel_size"):
         o3d_spectral.SpectralStepper(np.zeros((100, 3)), 0.0)
+
+
+def _object_on_a_wide_plane(shift):
+    """A drill (2000 points) moved by ``shift`` metres, on a 1.2 m x 1.2 m plane of points
+    (a small object in a large scene), as arrays (N, 6) with normals."""
+    drill = sample_model("power_drill", 2000)
+    obj = np.hstack([np.asarray(drill.points) + shift, np.asarray(drill.normals)])
+    u = np.linspace(-0.6, 0.6, 121)
+    x, y = np.meshgrid(u, u)
+    plane = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -0.15)])
+    normals = np.tile([0.0, 0.0, 1.0], (len(plane), 1))
+    return drill, np.vstack([obj, np.hstack([plane, normals])])
+
+
+def test_windowed_search_finds_the_global_shift_on_a_smaller_grid():
+    shift = np.array([0.23, -0.17, 0.05])
+    drill, scene = _object_on_a_wide_plane(shift)
+    stepper = o3d_spectral.SpectralStepper(scene, 0.008)
+    moving = stepper.moving(drill)
+    whole = stepper.evaluate(moving)
+    np.testing.assert_allclose(whole.translation, shift, atol=0.15 * 0.008)  # sub-voxel
+    expected = moving.centroid + shift
+    window = stepper.search_box(moving, around=expected + 0.01)
+    assert np.prod(window.shape) < np.prod(stepper.target_box.shape) / 4
+    windowed = stepper.evaluate(moving, around=expected + 0.01)
+    np.testing.assert_allclose(windowed.translation, whole.translation, atol=0.05 * 0.008)
+    # Without a prediction, or with the window off, the whole grid is searched.
+    assert stepper.search_box(moving) is stepper.target_box
+    off = o3d_spectral.SpectralStepper(
+        scene, 0.008, option=o3d_spectral.SpectralRegistrationOption(translation_window=None)
+    )
+    assert off.search_box(off.moving(drill), around=expected) is off.target_box
+
+
+def test_window_is_not_used_where_it_would_not_shrink_the_fft():
+    drill = sample_model("power_drill", 2000)
+    stepper = o3d_spectral.SpectralStepper(drill, 0.008)
+    moving = stepper.moving(drill)
+    assert stepper.search_box(moving, around=moving.centroid) is stepper.target_box
