@@ -139,6 +139,7 @@ register_spectral_variant(
         preconditioned=False,
         egi_smoothing=(0.1,),
         target_viewpoint=None,
+        translation_window=None,
     ),
 )
 register_spectral_variant(
