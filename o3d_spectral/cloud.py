@@ -170,11 +170,14 @@ class PreparedCloud:
         Mean normal in each voxel (unit, or zero where opposite normals cancel).
     normals : ndarray, shape (K, 3)
         Unit normals, the EGI's input (each counts once).
+    normal_points : ndarray, shape (K, 3)
+        Where those normals are, metres.
     """
 
     points: NDArray[np.float64]
     point_normals: NDArray[np.float64]
     normals: NDArray[np.float64]
+    normal_points: NDArray[np.float64]
 
 
 def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> None:
@@ -250,11 +253,16 @@ def prepare(
     point_normals = np.divide(
         point_normals, lengths, out=np.zeros_like(point_normals), where=lengths > 1e-6
     )
-    normals = np.asarray(fine.normals) if arrays.normals is None else arrays.normals
+    if arrays.normals is None:
+        normals, normal_points = np.asarray(fine.normals), np.asarray(fine.points)
+    else:
+        normals, normal_points = arrays.normals, arrays.points
     length = np.linalg.norm(normals, axis=1)
     keep = np.flatnonzero(length > 1e-6)
     if len(keep) < MIN_POINTS:
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
     if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)
         keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
-    return PreparedCloud(points, point_normals, normals[keep] / length[keep, None])
+    return PreparedCloud(
+        points, point_normals, normals[keep] / length[keep, None], normal_points[keep].copy()
+    )

@@ -44,6 +44,12 @@ class SpectralRegistrationOption:
         Hypotheses climbed after their first evaluation.
     hypothesis_iterations : int
         Iterations of the law from each climbed hypothesis before they are ranked again.
+    egi_focus : bool
+        Global search in a scene larger than the moving cloud: once the first hypotheses
+        have located it, match its EGI against the fixed cloud's normals around that
+        place only (:meth:`o3d_spectral.SpectralStepper.focused`) and add that
+        correlation's peaks to the hypotheses. No effect when the fixed cloud is about
+        the moving cloud's size.
     hypothesis_score : {"translation_peak", "fitness"}
         How hypotheses are ranked: the height of their phase-correlation peak (how well
         the rotated moving grid matches the fixed one under any shift; spectral, no
@@ -109,6 +115,7 @@ class SpectralRegistrationOption:
     climbs: int = 4
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
+    egi_focus: bool = True
     search_samples: int | None = None
     max_rotation_step: float = 0.35
     egi_binned: bool = False

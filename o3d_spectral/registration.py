@@ -19,6 +19,8 @@ __all__ = ["IterationRecord", "SpectralRegistrationResult", "registration_spectr
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
+#: Voxels added to the moving cloud's radius for the ball of a focused EGI.
+FOCUS_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -204,17 +206,63 @@ def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
     return best_score
 
 
-def _starting_rotations(
-    stepper: SpectralStepper, moving: MovingCloud
-) -> list[NDArray[np.float64]]:
-    """The identity (local search), or the peaks of ``C_r`` over all of SO(3) (global)."""
+def _peak_climbs(
+    stepper: SpectralStepper, moving: MovingCloud, predicted: NDArray[np.float64] | None = None
+) -> list[_Climb]:
+    """A climb from each of the ``option.hypotheses`` highest peaks of ``C_r`` over SO(3)."""
     option = stepper.option
-    if option.rotation_search == "local":
-        return [np.eye(3)]
     F, G = stepper.rotation_spectra(moving)
     samples = option.search_samples or 4 * option.bandwidth
     grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
-    return [R for R, _ in peaks(grid, count=option.hypotheses)]
+    return [
+        _Climb(_Pose(moving.centroid, R), predicted=predicted)
+        for R, _ in peaks(grid, count=option.hypotheses)
+    ]
+
+
+def _advance(
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    climbs: list[_Climb],
+    iterations: int,
+    *args: object,
+) -> list[tuple[float, _Climb]]:
+    """Climb each to ``iterations`` iterations in all; return them scored, best first."""
+    for climb in climbs:
+        _climb(stepper, moving, climb, iterations - len(climb.history), *args)
+    scored = [(_score(stepper, moving, climb), climb) for climb in climbs]
+    return sorted(scored, key=lambda pair: -pair[0])
+
+
+def _global_search(
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    criteria: SpectralConvergenceCriteria,
+    *args: object,
+) -> tuple[SpectralStepper, list[tuple[float, _Climb]]]:
+    """Hypotheses from the whole SO(3), climbed a little; the stepper to finish with.
+
+    One evaluation from every peak of the rotation correlation (its translation found
+    globally); with ``option.egi_focus``, the fixed EGI focused on where the best one
+    put the moving cloud and the peaks of that correlation evaluated too; the
+    ``option.climbs`` best climbed to ``option.hypothesis_iterations`` and ranked again.
+    """
+    option = stepper.option
+    first = min(1, criteria.max_iteration)
+    ranked = _advance(stepper, moving, _peak_climbs(stepper, moving), first, *args)
+    if option.egi_focus:
+        located = ranked[0][1].predicted
+        radius = moving.radius + FOCUS_MARGIN * stepper.voxel_size
+        focused = stepper.focused(located, radius)
+        if focused is not stepper:
+            stepper = focused
+            fresh = _peak_climbs(stepper, moving, predicted=located)
+            ranked = sorted(
+                ranked + _advance(stepper, moving, fresh, first, *args), key=lambda pair: -pair[0]
+            )
+    climbs = [climb for _, climb in ranked[: option.climbs]]
+    budget = min(option.hypothesis_iterations, criteria.max_iteration)
+    return stepper, _advance(stepper, moving, climbs, budget, *args)
 
 
 def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
@@ -297,24 +345,18 @@ def registration_spectral(
     moving = stepper.moving(source, "source", transformation=init)
 
     tolerance = (criteria.translation_tolerance or 0.02 * voxel_size, criteria.rotation_tolerance)
-    climbs = [_Climb(_Pose(moving.centroid, R)) for R in _starting_rotations(stepper, moving)]
     result = SpectralRegistrationResult()
-    if len(climbs) > 1:
-        # One evaluation from every peak (its translation found globally), the best few
-        # climbed a little, then the best of those climbed to convergence.
-        for budget, keep in ((1, option.climbs), (option.hypothesis_iterations, None)):
-            budget = min(budget, criteria.max_iteration)
-            for climb in climbs:
-                _climb(stepper, moving, climb, budget - len(climb.history), tolerance, init,
-                       start)
-            scores = [_score(stepper, moving, climb) for climb in climbs]
-            ranked = sorted(zip(scores, climbs, strict=True), key=lambda pair: -pair[0])
-            climbs = [climb for _, climb in ranked][:keep]
+    if option.rotation_search == "local":
+        climbs = [_Climb(_Pose(moving.centroid, np.eye(3)))]
+    else:
+        stepper, ranked = _global_search(stepper, moving, criteria, tolerance, init, start)
+        climbs = [climb for _, climb in ranked]
         result.hypotheses = [(climb.pose.matrix() @ init, score) for score, climb in ranked]
         result.confidence = _confidence(ranked)
     best = climbs[0]
-    _climb(stepper, moving, best, criteria.max_iteration - len(best.history), tolerance, init,
-           start)
+    _climb(
+        stepper, moving, best, criteria.max_iteration - len(best.history), tolerance, init, start
+    )
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
     result.translation_peak = best.history[-1].translation_peak

@@ -18,6 +18,7 @@ as visual servoing needs; :func:`o3d_spectral.registration_spectral` iterates
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -35,7 +36,11 @@ from .options import SpectralRegistrationOption
 from .rotation import curvature_scale, gradient, rotation_step
 from .translation import cross_power_peak
 
-__all__ = ["MovingCloud", "Evaluation", "Step", "SpectralStepper"]
+__all__ = ["MovingCloud", "Evaluation", "Step", "SpectralStepper", "FOCUS_SHARE"]
+
+#: :meth:`SpectralStepper.focused` keeps the whole EGI when the ball holds over this share
+#: of the fixed cloud's normals.
+FOCUS_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -171,6 +176,7 @@ class SpectralStepper:
         grid = splat(points, self.target_box, mode=self.option.voxel_weighting)
         self._target_grid = grid / np.linalg.norm(grid)
         self._target_spectra: dict[tuple, NDArray[np.complexfloating]] = {}
+        self._target_normals, self._target_normal_points = prepared.normals, prepared.normal_points
         raw = self._egi(prepared.normals)
         self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         self.target_points = points
@@ -193,6 +199,26 @@ class SpectralStepper:
     def _target_tree(self) -> cKDTree:
         """KD-tree of the fixed cloud's voxels, built on first use (hypothesis ranking)."""
         return cKDTree(self.target_points)
+
+    def focused(self, centre: ArrayLike, radius: float) -> SpectralStepper:
+        """This stepper with the fixed EGI made of the fixed cloud's normals within
+        ``radius`` (metres) of ``centre`` (metres) only.
+
+        In a scene much larger than the moving cloud (a tabletop against one object's
+        model) the whole scene's EGI is dominated by the table and the other objects;
+        once the phase correlation has located the moving cloud, the normals around that
+        place are the ones its EGI should match. The voxel grid, its spectra and the
+        translation search are shared with this stepper, unchanged. Returns ``self``
+        when the ball holds over ``FOCUS_SHARE`` of the normals (nothing to gain) or
+        fewer than ``MIN_POINTS``.
+        """
+        near = np.linalg.norm(self._target_normal_points - np.asarray(centre), axis=1) <= radius
+        if near.sum() < MIN_POINTS or near.mean() > FOCUS_SHARE:
+            return self
+        out = copy.copy(self)
+        raw = self._egi(self._target_normals[near])
+        out.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
+        return out
 
     @property
     def levels(self) -> int:

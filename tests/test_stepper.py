@@ -90,3 +90,27 @@ def test_window_is_not_used_where_it_would_not_shrink_the_fft():
     stepper = o3d_spectral.SpectralStepper(drill, 0.008)
     moving = stepper.moving(drill)
     assert stepper.search_box(moving, around=moving.centroid) is stepper.target_box
+
+
+def test_focused_egi_is_that_of_the_normals_in_the_ball():
+    drill = sample_model("power_drill", 2000)
+    shift = np.array([0.3, 0.2, 0.0])
+    obj = np.hstack([np.asarray(drill.points) + shift, np.asarray(drill.normals)])
+    u = np.linspace(-0.6, 0.6, 61)
+    x, y = np.meshgrid(u, u)
+    plane = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -0.6)])
+    scene = np.vstack([obj, np.hstack([plane, np.tile([0.0, 0.0, 1.0], (len(plane), 1))])])
+    stepper = o3d_spectral.SpectralStepper(scene, 0.008)
+    alone = o3d_spectral.SpectralStepper(obj, 0.008)
+    centre = obj[:, :3].mean(axis=0)
+    radius = np.linalg.norm(obj[:, :3] - centre, axis=1).max() + 0.01
+    focused = stepper.focused(centre, radius)
+    assert focused is not stepper
+    for level in range(stepper.levels):
+        np.testing.assert_allclose(
+            focused.target_coefficients[level], alone.target_coefficients[level], atol=1e-12
+        )
+        assert not np.allclose(stepper.target_coefficients[level], alone.target_coefficients[level])
+    assert focused.target_box is stepper.target_box  # the translation search is shared
+    # A fixed cloud that is all in the ball has nothing to focus on.
+    assert alone.focused(centre, radius) is alone
