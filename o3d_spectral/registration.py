@@ -19,7 +19,8 @@ __all__ = ["IterationRecord", "SpectralRegistrationResult", "registration_spectr
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
-#: Voxels added to the moving cloud's radius for the ball of a focused EGI.
+#: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
+#: distance (voxels) from a hypothesis' points of the normals its climb matches.
 FOCUS_MARGIN = 2.0
 
 
@@ -130,14 +131,16 @@ class _Pose:
 
 @dataclass
 class _Climb:
-    """One run of the control law: its pose, smoothing level, history, and where the last
-    phase correlation put the moving cloud's centroid (None before the first)."""
+    """One run of the control law: its pose, smoothing level, history, where the last
+    phase correlation put the moving cloud's centroid (None before the first), and the
+    stepper it climbs against when not the registration's own (a focused EGI)."""
 
     pose: _Pose
     level: int = 0
     history: list[IterationRecord] = field(default_factory=list)
     converged: bool = False
     predicted: NDArray[np.float64] | None = None
+    stepper: SpectralStepper | None = None
 
 
 def _climb(
@@ -187,13 +190,19 @@ def _climb(
         pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
 
 
-def _score(stepper: SpectralStepper, moving: MovingCloud, climb: _Climb) -> float:
-    """How well a climb's last evaluation fits, by ``option.hypothesis_score``: the
-    phase-correlation peak there, or the fitness at its rotation and predicted position."""
-    last = climb.history[-1]
+def _score(
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    rotation: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    peak: float,
+) -> float:
+    """How well a hypothesis fits, by ``option.hypothesis_score``: the phase-correlation
+    peak ``peak``, or the fitness with the moving cloud turned by ``rotation`` and its
+    centroid at ``centre`` (metres)."""
     if stepper.option.hypothesis_score == "translation_peak":
-        return last.translation_peak
-    return stepper.fitness(moving, last.rotation, climb.predicted - moving.centroid)
+        return peak
+    return stepper.fitness(moving, rotation, centre - moving.centroid)
 
 
 def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
@@ -206,31 +215,25 @@ def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
     return best_score
 
 
-def _peak_climbs(
-    stepper: SpectralStepper, moving: MovingCloud, predicted: NDArray[np.float64] | None = None
-) -> list[_Climb]:
-    """A climb from each of the ``option.hypotheses`` highest peaks of ``C_r`` over SO(3)."""
+def _hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, around: NDArray[np.float64] | None = None
+) -> list[tuple[float, _Climb]]:
+    """A climb from each of the ``option.hypotheses`` highest peaks of ``C_r`` over SO(3),
+    placed where the phase correlation puts the turned moving cloud (searched near
+    ``around`` when given), with its score."""
     option = stepper.option
     F, G = stepper.rotation_spectra(moving)
     samples = option.search_samples or 4 * option.bandwidth
     grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
-    return [
-        _Climb(_Pose(moving.centroid, R), predicted=predicted)
-        for R, _ in peaks(grid, count=option.hypotheses)
-    ]
+    scored = []
+    for R, _ in peaks(grid, count=option.hypotheses):
+        centre, peak = stepper.locate(moving, R, around=around)
+        climb = _Climb(_Pose(moving.centroid, R, centre - moving.centroid), predicted=centre)
+        scored.append((_score(stepper, moving, R, centre, peak), climb))
+    return scored
 
 
-def _advance(
-    stepper: SpectralStepper,
-    moving: MovingCloud,
-    climbs: list[_Climb],
-    iterations: int,
-    *args: object,
-) -> list[tuple[float, _Climb]]:
-    """Climb each to ``iterations`` iterations in all; return them scored, best first."""
-    for climb in climbs:
-        _climb(stepper, moving, climb, iterations - len(climb.history), *args)
-    scored = [(_score(stepper, moving, climb), climb) for climb in climbs]
+def _by_score(scored: list[tuple[float, _Climb]]) -> list[tuple[float, _Climb]]:
     return sorted(scored, key=lambda pair: -pair[0])
 
 
@@ -239,30 +242,38 @@ def _global_search(
     moving: MovingCloud,
     criteria: SpectralConvergenceCriteria,
     *args: object,
-) -> tuple[SpectralStepper, list[tuple[float, _Climb]]]:
-    """Hypotheses from the whole SO(3), climbed a little; the stepper to finish with.
+) -> list[tuple[float, _Climb]]:
+    """Hypotheses from the whole SO(3), climbed a little, best first.
 
-    One evaluation from every peak of the rotation correlation (its translation found
-    globally); with ``option.egi_focus``, the fixed EGI focused on where the best one
-    put the moving cloud and the peaks of that correlation evaluated too; the
-    ``option.climbs`` best climbed to ``option.hypothesis_iterations`` and ranked again.
+    Every peak of the rotation correlation is located by phase correlation and scored.
+    With ``option.egi_focus``, in a fixed cloud larger than the moving one, the fixed
+    EGI is then focused on a ball about where the best one put the moving cloud, that
+    correlation's peaks are added, and each climbed hypothesis matches the normals near
+    its own points (:meth:`SpectralStepper.focused`). The ``option.climbs`` best are
+    climbed ``option.hypothesis_iterations`` times and ranked again.
     """
     option = stepper.option
-    first = min(1, criteria.max_iteration)
-    ranked = _advance(stepper, moving, _peak_climbs(stepper, moving), first, *args)
+    ranked = _by_score(_hypotheses(stepper, moving))
+    focus = False
     if option.egi_focus:
         located = ranked[0][1].predicted
-        radius = moving.radius + FOCUS_MARGIN * stepper.voxel_size
-        focused = stepper.focused(located, radius)
-        if focused is not stepper:
-            stepper = focused
-            fresh = _peak_climbs(stepper, moving, predicted=located)
-            ranked = sorted(
-                ranked + _advance(stepper, moving, fresh, first, *args), key=lambda pair: -pair[0]
-            )
+        ball = stepper.focused(located[None, :], moving.radius + FOCUS_MARGIN * stepper.voxel_size)
+        focus = ball is not stepper
+        if focus:
+            ranked = _by_score(ranked + _hypotheses(ball, moving, around=located))
     climbs = [climb for _, climb in ranked[: option.climbs]]
     budget = min(option.hypothesis_iterations, criteria.max_iteration)
-    return stepper, _advance(stepper, moving, climbs, budget, *args)
+    scored = []
+    for climb in climbs:
+        if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
+            near = stepper.visible_points(moving, climb.pose.R, climb.pose.T)
+            climb.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
+        _climb(climb.stepper or stepper, moving, climb, budget, *args)
+        last = climb.history[-1]
+        scored.append(
+            (_score(stepper, moving, last.rotation, climb.predicted, last.translation_peak), climb)
+        )
+    return _by_score(scored)
 
 
 def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
@@ -347,16 +358,14 @@ def registration_spectral(
     tolerance = (criteria.translation_tolerance or 0.02 * voxel_size, criteria.rotation_tolerance)
     result = SpectralRegistrationResult()
     if option.rotation_search == "local":
-        climbs = [_Climb(_Pose(moving.centroid, np.eye(3)))]
+        best = _Climb(_Pose(moving.centroid, np.eye(3)))
     else:
-        stepper, ranked = _global_search(stepper, moving, criteria, tolerance, init, start)
-        climbs = [climb for _, climb in ranked]
+        ranked = _global_search(stepper, moving, criteria, tolerance, init, start)
+        best = ranked[0][1]
         result.hypotheses = [(climb.pose.matrix() @ init, score) for score, climb in ranked]
         result.confidence = _confidence(ranked)
-    best = climbs[0]
-    _climb(
-        stepper, moving, best, criteria.max_iteration - len(best.history), tolerance, init, start
-    )
+    left = criteria.max_iteration - len(best.history)
+    _climb(best.stepper or stepper, moving, best, left, tolerance, init, start)
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
     result.translation_peak = best.history[-1].translation_peak

@@ -200,25 +200,36 @@ class SpectralStepper:
         """KD-tree of the fixed cloud's voxels, built on first use (hypothesis ranking)."""
         return cKDTree(self.target_points)
 
-    def focused(self, centre: ArrayLike, radius: float) -> SpectralStepper:
-        """This stepper with the fixed EGI made of the fixed cloud's normals within
-        ``radius`` (metres) of ``centre`` (metres) only.
+    def focused(self, near: ArrayLike, radius: float) -> SpectralStepper:
+        """This stepper with the fixed EGI made only of the fixed cloud's normals within
+        ``radius`` (metres) of one of the points ``near`` (metres, shape (K, 3)).
 
         In a scene much larger than the moving cloud (a tabletop against one object's
         model) the whole scene's EGI is dominated by the table and the other objects;
-        once the phase correlation has located the moving cloud, the normals around that
-        place are the ones its EGI should match. The voxel grid, its spectra and the
+        once the phase correlation has located the moving cloud, the normals around it
+        (a ball about its centroid, or the moving cloud's own points at an estimated
+        pose) are the ones its EGI should match. The voxel grid, its spectra and the
         translation search are shared with this stepper, unchanged. Returns ``self``
-        when the ball holds over ``FOCUS_SHARE`` of the normals (nothing to gain) or
-        fewer than ``MIN_POINTS``.
+        when over ``FOCUS_SHARE`` of the normals are kept (nothing to gain) or fewer
+        than ``MIN_POINTS``.
         """
-        near = np.linalg.norm(self._target_normal_points - np.asarray(centre), axis=1) <= radius
-        if near.sum() < MIN_POINTS or near.mean() > FOCUS_SHARE:
+        tree = cKDTree(np.asarray(near, dtype=np.float64).reshape(-1, 3))
+        distances, _ = tree.query(self._target_normal_points, distance_upper_bound=radius)
+        kept = np.isfinite(distances)
+        if kept.sum() < MIN_POINTS or kept.mean() > FOCUS_SHARE:
             return self
         out = copy.copy(self)
-        raw = self._egi(self._target_normals[near])
+        raw = self._egi(self._target_normals[kept])
         out.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
         return out
+
+    def visible_points(
+        self, moving: MovingCloud, rotation: ArrayLike, translation: ArrayLike
+    ) -> NDArray[np.float64]:
+        """The moving cloud's points at the pose ``x -> R (x - c) + c + T`` that face the
+        fixed cloud's sensor (all of them when it is not a single view), shape (K, 3)."""
+        R = np.asarray(rotation, dtype=np.float64)
+        return self._visible(moving, R, np.asarray(translation, dtype=np.float64))[0]
 
     @property
     def levels(self) -> int:
@@ -370,6 +381,71 @@ class SpectralStepper:
         return 1.0 - overlap  # 1/2 (|g|^2 + |f|^2) - <g, f> with |g| = |f| = 1
 
     # -- the law -----------------------------------------------------------------------
+    def _visible(
+        self, moving: MovingCloud, R: NDArray[np.float64], T: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None, NDArray[np.float64] | None]:
+        """The moving cloud's points at the pose, less those facing away from the fixed
+        cloud's sensor when it is a single view; the mask and the cosines of incidence
+        (None when nothing is culled)."""
+        moved = moving.posed(R, T)
+        if self.viewpoint is None:
+            return moved, None, None
+        rays = self.viewpoint - moved
+        cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
+        cosine /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
+        facing = cosine > 0.0
+        if facing.sum() < MIN_POINTS:
+            return moved, None, None
+        return moved[facing], facing, cosine
+
+    def _phase_correlate(
+        self,
+        moving: MovingCloud,
+        moved: NDArray[np.float64],
+        centre: NDArray[np.float64],
+        around: ArrayLike | None,
+    ) -> tuple[NDArray[np.float64], float, NDArray[np.floating], Box]:
+        """Voxelise ``moved`` (the moving cloud's points, centroid at ``centre``) on the
+        shared lattice and phase-correlate it with the fixed grid (eq.
+        fourier_shift_solution): the shift (metres) onto the fixed cloud, the peak height,
+        the unit-norm moving grid (zero-padded FFT buffer) and its box."""
+        box = self._moving_box(moving, centre)
+        fixed = self.search_box(moving, around)
+        fft, G = self._fft(fixed, box)
+        buffer = np.zeros(fft.shape, dtype=fft.dtype)
+        splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
+        buffer /= np.linalg.norm(buffer)
+        peak = cross_power_peak(
+            fft.forward(buffer), G, fft, sigma=self.option.peak_width, positive_below=fixed.shape
+        )
+        shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
+        return shift, peak.peak, buffer, box
+
+    def locate(
+        self, moving: MovingCloud, rotation: ArrayLike, *, around: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64], float]:
+        """Where the moving cloud, turned by ``rotation`` about its centroid, best matches
+        the fixed one: the translation half of :meth:`evaluate`, without the rotation's.
+
+        Parameters
+        ----------
+        moving : MovingCloud
+        rotation : array_like, shape (3, 3)
+        around : array_like, shape (3,), optional
+            Search near this expected centroid (metres) only (:meth:`search_box`).
+
+        Returns
+        -------
+        centre : ndarray, shape (3,)
+            Where the moving cloud's centroid should go, metres.
+        peak : float
+            Height of the phase-correlation peak in [0, 1].
+        """
+        R = np.asarray(rotation, dtype=np.float64)
+        moved, _, _ = self._visible(moving, R, np.zeros(3))
+        shift, peak, _, _ = self._phase_correlate(moving, moved, moving.centroid, around)
+        return moving.centroid + shift, peak
+
     def evaluate(
         self,
         moving: MovingCloud,
@@ -399,31 +475,12 @@ class SpectralStepper:
         """
         R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         T = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
-        centre = moving.centroid + T
-        moved = moving.posed(R, T)
+        moved, facing, cosine = self._visible(moving, R, T)
         raw_egi = moving.coefficients
-        if self.viewpoint is not None:  # the target is one view: keep what faces its sensor
-            rays = self.viewpoint - moved
-            cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
-            cosine /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
-            facing = cosine > 0.0
-            if facing.sum() >= MIN_POINTS:
-                moved = moved[facing]
-                # A sensor samples a surface in proportion to its projected area: cos(incidence).
-                raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
-        # Translation: voxelise the moved cloud on the shared lattice, phase-correlate.
-        box = self._moving_box(moving, centre)
-        fixed = self.search_box(moving, around)
-        fft, G = self._fft(fixed, box)
-        buffer = np.zeros(fft.shape, dtype=fft.dtype)
-        splat(moved, box, mode=self.option.voxel_weighting, out=buffer)
-        norm = np.linalg.norm(buffer)
-        buffer /= norm
-        F = fft.forward(buffer)
-        peak = cross_power_peak(
-            F, G, fft, sigma=self.option.peak_width, positive_below=fixed.shape
-        )
-        shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
+        if facing is not None:
+            # A sensor samples a surface in proportion to its projected area: cos(incidence).
+            raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
+        shift, peak, buffer, box = self._phase_correlate(moving, moved, moving.centroid + T, around)
         cost_t = self._translation_cost(
             buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box
         )
@@ -437,7 +494,7 @@ class SpectralStepper:
             rotation=step,
             rotation_gradient=local.gradient,
             correlation=local.value,
-            translation_peak=peak.peak,
+            translation_peak=peak,
             cost_translation=cost_t,
             cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
         )

@@ -6,7 +6,13 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral import so3
-from o3d_spectral.symmetry import rotation_error, translation_error
+from o3d_spectral.scenes import make_instance
+from o3d_spectral.symmetry import (
+    rotation_error,
+    symmetric_rotation_error,
+    symmetric_translation_error,
+    translation_error,
+)
 from tests.conftest import sample_model
 
 VOXEL = 0.008
@@ -237,3 +243,27 @@ def test_global_search_recovers_a_large_rotation():
     assert 0 <= result.confidence <= scores[0]
     local = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL)
     assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["power_drill", "cracker_box", "gelatin_box"])
+def test_global_search_registers_an_object_in_a_cluttered_scene(name):
+    """A tabletop scene of the cluttered suite's generator (whole sensor view, table and
+    other objects included): the global search with its focused EGI registers the object
+    from any rotation within 5 deg and 1 cm."""
+    instance = make_instance("cluttered", name, rng=np.random.default_rng(1))
+    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
+    result = o3d_spectral.registration_spectral(
+        instance.source, instance.target, VOXEL, option=option
+    )
+    T, symmetry = instance.T_gt, instance.symmetry
+    assert symmetric_rotation_error(result.transformation, T, symmetry) < 5.0
+    center = instance.source_center
+    assert symmetric_translation_error(result.transformation, T, symmetry, center=center) < 0.01
+    if name == "cracker_box":  # the whole scene's EGI alone points it the wrong way
+        unfocused = o3d_spectral.registration_spectral(
+            instance.source, instance.target, VOXEL,
+            option=o3d_spectral.SpectralRegistrationOption(rotation_search="global",
+                                                           egi_focus=False),
+        )
+        assert symmetric_rotation_error(unfocused.transformation, T, symmetry) > 5.0

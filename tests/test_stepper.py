@@ -104,7 +104,7 @@ def test_focused_egi_is_that_of_the_normals_in_the_ball():
     alone = o3d_spectral.SpectralStepper(obj, 0.008)
     centre = obj[:, :3].mean(axis=0)
     radius = np.linalg.norm(obj[:, :3] - centre, axis=1).max() + 0.01
-    focused = stepper.focused(centre, radius)
+    focused = stepper.focused(centre[None, :], radius)
     assert focused is not stepper
     for level in range(stepper.levels):
         np.testing.assert_allclose(
@@ -113,4 +113,7 @@ def test_focused_egi_is_that_of_the_normals_in_the_ball():
         assert not np.allclose(stepper.target_coefficients[level], alone.target_coefficients[level])
     assert focused.target_box is stepper.target_box  # the translation search is shared
     # A fixed cloud that is all in the ball has nothing to focus on.
-    assert alone.focused(centre, radius) is alone
+    assert alone.focused(centre[None, :], radius) is alone
+    # Near the object's own points: the same normals.
+    near = stepper.focused(obj[:, :3], 0.001)
+    np.testing.assert_allclose(near.target_coefficients[-1], alone.target_coefficients[-1])
