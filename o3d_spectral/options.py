@@ -54,7 +54,9 @@ class SpectralRegistrationOption:
         How hypotheses are ranked: the height of their phase-correlation peak (how well
         the rotated moving grid matches the fixed one under any shift; spectral, no
         nearest neighbours), or Open3D's fitness on the down-sampled clouds at the
-        rotation and the translation the correlation found.
+        rotation and the translation the correlation found. After their climb, either
+        is multiplied by the EGI correlation there (``4 pi C_r`` in [-1, 1]): a pose
+        must match both the shape and the normals.
     search_samples : int or None
         Samples of each Euler angle in the global grid (``4 * bandwidth`` when None:
         steps of 180 / (2B) degrees in alpha and gamma).

@@ -88,8 +88,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     hypotheses : list of (ndarray (4, 4), float)
         Global search only: the ``option.climbs`` hypotheses that were climbed, each
         after ``option.hypothesis_iterations`` iterations, with its score
-        (``option.hypothesis_score``), best first (the returned transformation is the
-        first, climbed on to convergence).
+        (``option.hypothesis_score`` times the EGI correlation), best first (the
+        returned transformation is the first, climbed on to convergence).
     confidence : float
         Global search only: the best score minus that of the best hypothesis ending in a
         distinct rotation (over 10 degrees away); 0 when local.
@@ -250,7 +250,8 @@ def _global_search(
     EGI is then focused on a ball about where the best one put the moving cloud, that
     correlation's peaks are added, and each climbed hypothesis matches the normals near
     its own points (:meth:`SpectralStepper.focused`). The ``option.climbs`` best are
-    climbed ``option.hypothesis_iterations`` times and ranked again.
+    climbed ``option.hypothesis_iterations`` times and ranked again, by their score
+    times their EGI correlation.
     """
     option = stepper.option
     ranked = _by_score(_hypotheses(stepper, moving))
@@ -270,9 +271,8 @@ def _global_search(
             climb.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
         _climb(climb.stepper or stepper, moving, climb, budget, *args)
         last = climb.history[-1]
-        scored.append(
-            (_score(stepper, moving, last.rotation, climb.predicted, last.translation_peak), climb)
-        )
+        fit = _score(stepper, moving, last.rotation, climb.predicted, last.translation_peak)
+        scored.append((fit * 4.0 * np.pi * last.correlation, climb))
     return _by_score(scored)
 
 
