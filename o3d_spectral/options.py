@@ -34,22 +34,24 @@ class SpectralRegistrationOption:
         step) rather than by its mean (the paper's plain gradient, scaled).
     rotation_search : {"local", "global"}
         ``"local"``: the paper's gradient ascent from ``init``. ``"global"``: evaluate the
-        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`); from each of
-        its ``hypotheses`` highest peaks, one evaluation of the law (which finds the
-        translation globally); climb the ``climbs`` best-scoring ones for
-        ``hypothesis_iterations``; climb the best of those on to convergence.
+        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`); place each
+        of its ``hypotheses`` highest peaks where the phase correlation puts the turned
+        cloud (:meth:`o3d_spectral.SpectralStepper.locate`) and score it; climb the
+        ``climbs`` best for ``hypothesis_iterations``; climb the best of those on to
+        convergence.
     hypotheses : int
         Peaks of the global correlation tried.
     climbs : int
-        Hypotheses climbed after their first evaluation.
+        Hypotheses climbed after they have been located and scored.
     hypothesis_iterations : int
         Iterations of the law from each climbed hypothesis before they are ranked again.
     egi_focus : bool
         Global search in a scene larger than the moving cloud: once the first hypotheses
         have located it, match its EGI against the fixed cloud's normals around that
         place only (:meth:`o3d_spectral.SpectralStepper.focused`) and add that
-        correlation's peaks to the hypotheses. No effect when the fixed cloud is about
-        the moving cloud's size.
+        correlation's peaks to the hypotheses; each climbed hypothesis then matches only
+        the fixed cloud's normals near its own points. No effect when the fixed cloud is
+        about the moving cloud's size.
     hypothesis_score : {"translation_peak", "fitness"}
         How hypotheses are ranked: the height of their phase-correlation peak (how well
         the rotated moving grid matches the fixed one under any shift; spectral, no

@@ -38,8 +38,8 @@ from .translation import cross_power_peak
 
 __all__ = ["MovingCloud", "Evaluation", "Step", "SpectralStepper", "FOCUS_SHARE"]
 
-#: :meth:`SpectralStepper.focused` keeps the whole EGI when the ball holds over this share
-#: of the fixed cloud's normals.
+#: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
+#: over this share of the fixed cloud's normals.
 FOCUS_SHARE = 0.9
 
 
@@ -178,7 +178,7 @@ class SpectralStepper:
         self._target_spectra: dict[tuple, NDArray[np.complexfloating]] = {}
         self._target_normals, self._target_normal_points = prepared.normals, prepared.normal_points
         raw = self._egi(prepared.normals)
-        self.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
+        self.target_coefficients = self._smoothed_levels(raw)
         self.target_points = points
         self.viewpoint = self._viewpoint(prepared)
         self.level = 0
@@ -220,7 +220,7 @@ class SpectralStepper:
             return self
         out = copy.copy(self)
         raw = self._egi(self._target_normals[kept])
-        out.target_coefficients = [self._smooth(raw, level) for level in range(self.levels)]
+        out.target_coefficients = self._smoothed_levels(raw)
         return out
 
     def visible_points(
@@ -267,6 +267,10 @@ class SpectralStepper:
 
     def _smooth(self, raw: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return normalise(smooth(raw, self.option.egi_smoothing[level]))
+
+    def _smoothed_levels(self, raw: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Fixed-cloud EGI coefficients at every smoothing level."""
+        return [self._smooth(raw, level) for level in range(self.levels)]
 
     def moving(
         self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None
