@@ -114,6 +114,22 @@ def test_short_servo_run_converges_and_respects_joint_limits(arm):
     assert all(np.all(np.abs(c.qdot) <= arm.velocity_limit + 1e-12) for c in run.cycles)
 
 
+def test_gradient_test_waits_for_the_finest_smoothing_level(arm):
+    # Started at the desired pose, the coarse level's correction is already tiny; the run
+    # must still make one cycle at the fine level before the gradient test may stop it.
+    rng = np.random.default_rng(3)
+    sensor = servo.Sensor()
+    scene = servo.make_tabletop(rng, objects=(3, 3))
+    desired_q, _ = servo.desired_pose(arm, scene, rng)
+    options = servo.ServoOptions(voxel_size=0.015, max_time=1.0)
+    assert len(options.registration.egi_smoothing) == 2
+    run = servo.servo(arm, sensor, scene, desired_q=desired_q, start_q=desired_q, rng=rng,
+                      options=options)
+    assert run.converged
+    assert len(run.cycles) >= 2
+    assert run.cycles[0].rotation_correction < options.rotation_tolerance
+
+
 def test_joint_limits_hold_when_the_twist_pushes_past_them(arm):
     q = _random_q(arm, np.random.default_rng(8))
     q[3] = arm.upper[3] - 0.01

@@ -4,9 +4,10 @@ Capture the reference cloud at the desired pose and compute its spectra once; th
 cycle: capture the whole scene, compute the control law's increments
 (:meth:`o3d_spectral.SpectralStepper.step`), turn them into a camera twist, map it to
 joint velocities with the damped pseudo-inverse of the camera-frame Jacobian, limit them,
-integrate for one period. Stop when both of the law's full corrections are below their
-tolerances (the paper's gradient test, with one tolerance per unit as in
-:class:`o3d_spectral.SpectralConvergenceCriteria`) or at the time limit.
+integrate for one period. Stop when both of the law's full corrections, at the finest EGI
+smoothing level, are below their tolerances (the paper's gradient test, with one
+tolerance per unit as in :class:`o3d_spectral.SpectralConvergenceCriteria`) or at the
+time limit.
 """
 
 from __future__ import annotations
@@ -63,9 +64,7 @@ class ServoOptions:
     damping: float = 0.01
     limit_margin: float = np.deg2rad(1.0)
     registration: SpectralRegistrationOption = field(
-        default_factory=lambda: SpectralRegistrationOption(
-            target_viewpoint=None, egi_smoothing=(0.3,)
-        )
+        default_factory=lambda: SpectralRegistrationOption(target_viewpoint=None)
     )
 
     def __post_init__(self) -> None:
@@ -197,11 +196,13 @@ def servo(
         pose = arm.camera_pose(q)
         cloud = sensor.capture(scene, pose, rng=rng)
         tic = time.perf_counter()
+        finest = stepper.level == stepper.levels - 1  # the level this cycle's law uses
         step = stepper.step(cloud)
         correction_t = float(np.linalg.norm(step.evaluation.translation))
         correction_r = float(np.linalg.norm(step.evaluation.rotation))
         converged = bool(
-            correction_t < options.translation_tolerance
+            finest
+            and correction_t < options.translation_tolerance
             and correction_r < options.rotation_tolerance
         )
         qdot = np.zeros_like(q)
