@@ -87,6 +87,12 @@ class SpectralRegistrationOption:
         this many voxels of margin on each side (used only where it makes the FFT under
         half as large: a small object in a large scene). None: the whole fixed grid every
         iteration (the paper).
+    refinement : {None, "point_to_plane"}
+        Polish of the final pose: None (the spectral law's own, about a tenth of a voxel
+        and a few tenths of a degree) or ``"point_to_plane"``: Open3D's point-to-plane
+        ICP on the full clouds with correspondences up to ``0.4 * voxel_size``, the
+        refinement Open3D's global-registration tutorial (and this project's FPFH
+        baselines) apply. It uses correspondences, so it is off by default.
     max_correspondence_distance : float or None
         Distance (metres) at which ``fitness``, ``inlier_rmse`` and
         ``correspondence_set`` of the result are measured; the voxel size when None.
@@ -129,6 +135,7 @@ class SpectralRegistrationOption:
     voxel_weighting: str = "trilinear"
     peak_width: float = 1.0
     translation_window: int | None = 8
+    refinement: str | None = None
     max_correspondence_distance: float | None = None
     normal_radius: float | None = None
     camera_location: tuple[float, float, float] | None = None
@@ -177,6 +184,10 @@ class SpectralRegistrationOption:
         if isinstance(self.target_viewpoint, str) and self.target_viewpoint != "auto":
             raise ValueError(
                 f"target_viewpoint must be 'auto', a point or None, got {self.target_viewpoint!r}"
+            )
+        if self.refinement not in (None, "point_to_plane"):
+            raise ValueError(
+                f"refinement must be None or 'point_to_plane', got {self.refinement!r}"
             )
         if self.translation_window is not None and not (
             int(self.translation_window) == self.translation_window and self.translation_window >= 2

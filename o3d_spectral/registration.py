@@ -10,7 +10,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
-from .cloud import as_arrays, to_legacy
+from .cloud import CloudArrays, as_arrays, to_legacy
 from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
 from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
@@ -22,6 +22,9 @@ DISTINCT_ANGLE = np.deg2rad(10.0)
 #: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
 #: distance (voxels) from a hypothesis' points of the normals its climb matches.
 FOCUS_MARGIN = 2.0
+
+#: ``option.refinement``'s correspondence distance, voxels (Open3D's tutorial: 0.4).
+REFINEMENT_DISTANCE = 0.4
 
 
 @dataclass(frozen=True)
@@ -286,6 +289,31 @@ def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
     return M
 
 
+def _point_to_plane(
+    source: CloudArrays,
+    target: CloudArrays,
+    stepper: SpectralStepper,
+    voxel_size: float,
+    transformation: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``option.refinement="point_to_plane"``: Open3D's point-to-plane ICP from
+    ``transformation`` on the full clouds, correspondences up to ``0.4 * voxel_size``
+    (metres). A target without normals uses the down-sampled points and normals the
+    stepper prepared."""
+    fixed = to_legacy(target)
+    if not fixed.has_normals():
+        fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
+        fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
+    refined = o3d.pipelines.registration.registration_icp(
+        to_legacy(source),
+        fixed,
+        REFINEMENT_DISTANCE * voxel_size,
+        transformation,
+        o3d.pipelines.registration.TransformationEstimationPointToPlane(),
+    )
+    return np.asarray(refined.transformation)
+
+
 def registration_spectral(
     source: object,
     target: object,
@@ -372,6 +400,8 @@ def registration_spectral(
     pose = best.pose
 
     transformation = pose.matrix() @ init
+    if option.refinement == "point_to_plane":
+        transformation = _point_to_plane(source, target, stepper, voxel_size, transformation)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = option.max_correspondence_distance or voxel_size

@@ -232,6 +232,16 @@ class SpectralStepper:
         return self._visible(moving, R, np.asarray(translation, dtype=np.float64))[0]
 
     @property
+    def target_normal_points(self) -> NDArray[np.float64]:
+        """The fixed cloud's down-sampled points that carry its EGI normals (K, 3), metres."""
+        return self._target_normal_points
+
+    @property
+    def target_normals(self) -> NDArray[np.float64]:
+        """Unit normals (K, 3) at :attr:`target_normal_points`."""
+        return self._target_normals
+
+    @property
     def levels(self) -> int:
         """Number of EGI smoothing levels (``option.egi_smoothing``)."""
         return len(self.option.egi_smoothing)
