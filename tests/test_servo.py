@@ -158,3 +158,5 @@ def test_servo_command_rejects_bad_trials(tmp_path, capsys):
 
     assert main(["servo", "--trials", "0", "--out", str(tmp_path)]) == 2
     assert "--trials" in capsys.readouterr().err
+    assert main(["servo", "--workers", "0", "--out", str(tmp_path)]) == 2
+    assert "--workers" in capsys.readouterr().err

@@ -34,6 +34,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="simulated time limit per run, seconds")
     parser.add_argument("--voxel-size", type=float, default=0.01, help="metres")
     parser.add_argument("--period", type=float, default=0.1, help="control period, seconds")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="trials run in parallel, one process each (default 1); results "
+                        "do not depend on it, controller times do (cores are shared)")
     parser.set_defaults(func=run)
 
 
@@ -127,13 +130,31 @@ def _write_summary(rows: list[dict], out: Path) -> dict:
     return summary
 
 
+def _trial_job(job: tuple) -> tuple[dict, list[float]]:
+    """Run and write one seeded trial in this process: its summary row and its cycles'
+    controller times (seconds)."""
+    from o3d_spectral import servo
+
+    seed, options, folder, config = job
+    sensor = servo.Sensor()
+    with servo.Arm(world_from_base=servo.WORLD_FROM_BASE) as arm:
+        trial = servo.random_trial(seed, arm, sensor, options=options)
+    row = _write_trial(trial, sensor, folder, config)
+    return row, [c.controller_time for c in trial.run.cycles]
+
+
 def run(args: argparse.Namespace) -> int:
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
     from tqdm import tqdm
 
     from o3d_spectral import servo
 
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    if args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     options = servo.ServoOptions(period=args.period, max_time=args.max_time,
                                  voxel_size=args.voxel_size)
     config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
@@ -141,15 +162,18 @@ def run(args: argparse.Namespace) -> int:
     config["options"] = repr(options)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "config.json").write_text(json.dumps(config, indent=2))
-    sensor = servo.Sensor()
-    rows, controller_times = [], []
-    with servo.Arm(world_from_base=servo.WORLD_FROM_BASE) as arm:
-        seeds = range(args.seed, args.seed + args.trials)
-        for seed in tqdm(seeds, desc="trials", unit="run", disable=args.trials == 1):
-            trial = servo.random_trial(seed, arm, sensor, options=options)
-            folder = args.out if args.trials == 1 else args.out / f"seed_{seed:04d}"
-            rows.append(_write_trial(trial, sensor, folder, config))
-            controller_times += [c.controller_time for c in trial.run.cycles]
+    seeds = range(args.seed, args.seed + args.trials)
+    jobs = [(seed, options, args.out if args.trials == 1 else args.out / f"seed_{seed:04d}",
+             config) for seed in seeds]
+    bar = dict(total=len(jobs), desc="trials", unit="run", disable=args.trials == 1)
+    if args.workers == 1:
+        results = [_trial_job(job) for job in tqdm(jobs, **bar)]
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers,
+                                 mp_context=get_context("spawn")) as pool:
+            results = list(tqdm(pool.map(_trial_job, jobs), **bar))
+    rows = [row for row, _ in results]
+    controller_times = [t for _, times in results for t in times]
     median_ms = 1000 * float(np.median(controller_times))
     for row in rows if args.trials == 1 else []:
         print(f"seed {row['seed']}: start {1000 * row['start_translation_m']:.0f} mm, "
