@@ -87,12 +87,13 @@ class SpectralRegistrationOption:
         this many voxels of margin on each side (used only where it makes the FFT under
         half as large: a small object in a large scene). None: the whole fixed grid every
         iteration (the paper).
-    refinement : {None, "point_to_plane"}
-        Polish of the final pose: None (the spectral law's own, about a tenth of a voxel
-        and a few tenths of a degree) or ``"point_to_plane"``: Open3D's point-to-plane
-        ICP on the full clouds with correspondences up to ``0.4 * voxel_size``, the
-        refinement Open3D's global-registration tutorial (and this project's FPFH
-        baselines) apply. It uses correspondences, so it is off by default.
+    refinement : {"point_to_plane", None}
+        Polish of the law's final pose. ``"point_to_plane"`` (default): Open3D's
+        point-to-plane ICP on the full clouds with correspondences up to
+        ``0.4 * voxel_size``, the refinement of Open3D's global-registration tutorial
+        (and of this project's FPFH baselines); it starts within a voxel of the answer,
+        so it only polishes. None: the spectral law's pose itself, with no
+        correspondences at all (the paper).
     max_correspondence_distance : float or None
         Distance (metres) at which ``fitness``, ``inlier_rmse`` and
         ``correspondence_set`` of the result are measured; the voxel size when None.
@@ -135,7 +136,7 @@ class SpectralRegistrationOption:
     voxel_weighting: str = "trilinear"
     peak_width: float = 1.0
     translation_window: int | None = 8
-    refinement: str | None = None
+    refinement: str | None = "point_to_plane"
     max_correspondence_distance: float | None = None
     normal_radius: float | None = None
     camera_location: tuple[float, float, float] | None = None

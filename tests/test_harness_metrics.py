@@ -166,6 +166,7 @@ def test_registry_holds_the_issue_methods():
         "spectral",
         "spectral_paper",
         "spectral_global",
+        "spectral_global_unrefined",
         "icp_point_to_point",
         "icp_point_to_plane",
         "fpfh_ransac",

@@ -140,10 +140,15 @@ register_spectral_variant(
         egi_smoothing=(0.1,),
         target_viewpoint=None,
         translation_window=None,
+        refinement=None,
     ),
 )
 register_spectral_variant(
     "spectral_global", option=SpectralRegistrationOption(rotation_search="global")
+)
+register_spectral_variant(
+    "spectral_global_unrefined",
+    option=SpectralRegistrationOption(rotation_search="global", refinement=None),
 )
 
 
