@@ -91,9 +91,9 @@ class SpectralRegistrationOption:
         Polish of the law's final pose. ``"point_to_plane"`` (default): Open3D's
         point-to-plane ICP on the full clouds with correspondences up to
         ``0.4 * voxel_size``, the refinement of Open3D's global-registration tutorial
-        (and of this project's FPFH baselines); it starts within a voxel of the answer,
-        so it only polishes. None: the spectral law's pose itself, with no
-        correspondences at all (the paper).
+        (and of this project's FPFH baselines); its correspondences reach 0.4 voxel, so
+        it polishes the law's pose rather than replacing it. None: the spectral law's
+        pose itself, with no correspondences at all (the paper).
     max_correspondence_distance : float or None
         Distance (metres) at which ``fitness``, ``inlier_rmse`` and
         ``correspondence_set`` of the result are measured; the voxel size when None.

@@ -368,6 +368,8 @@ def registration_spectral(
     it reliably corrects rotations up to a few tens of degrees. With
     ``option.rotation_search="global"`` it starts from the peaks of the rotation
     correlation over all of SO(3) instead. The translation is always found globally.
+    The law's pose is then polished by a point-to-plane ICP with correspondences within
+    0.4 voxel (``option.refinement``; None keeps the law's pose, correspondence-free).
 
     Examples
     --------
