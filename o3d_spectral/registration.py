@@ -299,18 +299,24 @@ def _point_to_plane(
     """``option.refinement="point_to_plane"``: Open3D's point-to-plane ICP from
     ``transformation`` on the full clouds, correspondences up to ``0.4 * voxel_size``
     (metres). A target without normals uses the down-sampled points and normals the
-    stepper prepared."""
+    stepper prepared. Runs on one thread: Open3D's multi-threaded sums change the last
+    bits of the result from run to run, and a registration must repeat exactly."""
     fixed = to_legacy(target)
     if not fixed.has_normals():
         fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
         fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
-    refined = o3d.pipelines.registration.registration_icp(
-        to_legacy(source),
-        fixed,
-        REFINEMENT_DISTANCE * voxel_size,
-        transformation,
-        o3d.pipelines.registration.TransformationEstimationPointToPlane(),
-    )
+    threads = o3d.utility.get_max_threads()
+    o3d.utility.set_max_threads(1)
+    try:
+        refined = o3d.pipelines.registration.registration_icp(
+            to_legacy(source),
+            fixed,
+            REFINEMENT_DISTANCE * voxel_size,
+            transformation,
+            o3d.pipelines.registration.TransformationEstimationPointToPlane(),
+        )
+    finally:
+        o3d.utility.set_max_threads(threads)
     return np.asarray(refined.transformation)
 
 
