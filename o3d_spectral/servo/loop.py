@@ -53,7 +53,9 @@ class ServoOptions:
         The control law's settings (gains ``lambda_t``, ``lambda_r``, ...). Default: the
         library's, without back-face culling (``target_viewpoint=None``): both clouds
         are single views in their own sensor frames, so the culling's incidence weighting
-        would weigh the current cloud's EGI and not the reference's.
+        would weigh the current cloud's EGI and not the reference's; and with half the
+        library's translation gain (``lambda_t=0.25``): from 30-40 degrees the camera
+        then translates less before the rotation has settled (docs/servo.md).
     """
 
     period: float = 0.1
@@ -64,7 +66,7 @@ class ServoOptions:
     damping: float = 0.01
     limit_margin: float = np.deg2rad(1.0)
     registration: SpectralRegistrationOption = field(
-        default_factory=lambda: SpectralRegistrationOption(target_viewpoint=None)
+        default_factory=lambda: SpectralRegistrationOption(target_viewpoint=None, lambda_t=0.25)
     )
 
     def __post_init__(self) -> None:
