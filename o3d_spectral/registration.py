@@ -10,7 +10,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
-from .cloud import CloudArrays, as_arrays, to_legacy
+from .cloud import as_arrays, to_legacy
 from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
 from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
@@ -289,35 +289,45 @@ def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
     return M
 
 
-def _point_to_plane(
-    source: CloudArrays,
-    target: CloudArrays,
-    stepper: SpectralStepper,
+def point_to_plane_refinement(
+    source: o3d.geometry.PointCloud,
+    target: o3d.geometry.PointCloud,
     voxel_size: float,
-    transformation: NDArray[np.float64],
+    init: ArrayLike,
 ) -> NDArray[np.float64]:
-    """``option.refinement="point_to_plane"``: Open3D's point-to-plane ICP from
-    ``transformation`` on the full clouds, correspondences up to ``0.4 * voxel_size``
-    (metres). A target without normals uses the down-sampled points and normals the
-    stepper prepared. Runs on one thread: Open3D's multi-threaded sums change the last
-    bits of the result from run to run, and a registration must repeat exactly."""
-    fixed = to_legacy(target)
-    if not fixed.has_normals():
-        fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
-        fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
+    """Open3D's point-to-plane ICP from ``init`` (4, 4), correspondences up to
+    ``0.4 * voxel_size`` (metres): the refinement of Open3D's global-registration
+    tutorial, used by ``option.refinement`` and by the harness' FPFH baselines.
+
+    ``target`` must have normals. Runs on one thread: Open3D's multi-threaded sums
+    change the last bits of the result from run to run, and a registration must repeat
+    exactly.
+    """
     threads = o3d.utility.get_max_threads()
     o3d.utility.set_max_threads(1)
     try:
         refined = o3d.pipelines.registration.registration_icp(
-            to_legacy(source),
-            fixed,
+            source,
+            target,
             REFINEMENT_DISTANCE * voxel_size,
-            transformation,
+            np.asarray(init, dtype=np.float64),
             o3d.pipelines.registration.TransformationEstimationPointToPlane(),
         )
     finally:
         o3d.utility.set_max_threads(threads)
     return np.asarray(refined.transformation)
+
+
+def _with_normals(
+    target: o3d.geometry.PointCloud, stepper: SpectralStepper
+) -> o3d.geometry.PointCloud:
+    """``target``, or, when it has no normals, the down-sampled points and normals the
+    stepper prepared."""
+    if target.has_normals():
+        return target
+    fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
+    fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
+    return fixed
 
 
 def registration_spectral(
@@ -408,16 +418,16 @@ def registration_spectral(
     pose = best.pose
 
     transformation = pose.matrix() @ init
+    source_legacy, target_legacy = to_legacy(source), to_legacy(target)  # once, for both
     if option.refinement == "point_to_plane":
-        transformation = _point_to_plane(source, target, stepper, voxel_size, transformation)
+        transformation = point_to_plane_refinement(
+            source_legacy, _with_normals(target_legacy, stepper), voxel_size, transformation
+        )
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = option.max_correspondence_distance or voxel_size
     evaluation = o3d.pipelines.registration.evaluate_registration(
-        to_legacy(source),
-        to_legacy(target),
-        distance,
-        transformation,
+        source_legacy, target_legacy, distance, transformation
     )
     result.transformation = transformation
     result.fitness = evaluation.fitness

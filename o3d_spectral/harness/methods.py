@@ -31,6 +31,7 @@ from o3d_spectral import (
     SpectralRegistrationOption,
     registration_spectral,
 )
+from o3d_spectral.registration import point_to_plane_refinement
 
 __all__ = [
     "INFO_KEYS",
@@ -198,23 +199,17 @@ def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float):
     return down, feature
 
 
-def _refine(source, target, voxel_size: float, init: np.ndarray) -> np.ndarray:
-    """The tutorial's refinement: point-to-plane ICP at ``0.4 v`` on the full clouds."""
-    result = _reg.registration_icp(
-        source, target, 0.4 * voxel_size, init, _reg.TransformationEstimationPointToPlane()
-    )
-    return np.asarray(result.transformation)
-
-
 def _global_then_refine(source, target, voxel_size: float, seed: int, match) -> np.ndarray:
     """FPFH features of both clouds, the global registration
     ``match(source_down, target_down, source_fpfh, target_fpfh)`` (seeded), then
-    :func:`_refine`; returns the 4x4 estimate."""
+    the tutorial's point-to-plane refinement on the full clouds
+    (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
+    estimate."""
     source_down, source_fpfh = _fpfh(source, voxel_size)
     target_down, target_fpfh = _fpfh(target, voxel_size)
     o3d.utility.random.seed(seed)
     coarse = match(source_down, target_down, source_fpfh, target_fpfh)
-    return _refine(source, target, voxel_size, coarse.transformation)
+    return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
 
 
 @register_method("fpfh_ransac")
