@@ -38,9 +38,14 @@ class SpectralRegistrationOption:
         of its ``hypotheses`` highest peaks where the phase correlation puts the turned
         cloud (:meth:`o3d_spectral.SpectralStepper.locate`) and score it; climb the
         ``climbs`` best for ``hypothesis_iterations``; climb the best of those on to
-        convergence.
+        convergence. In :meth:`o3d_spectral.SpectralStepper.step` (visual servoing):
+        head for the best located peak, searched again on each capture, until it is
+        within ``handover_angle`` of the identity, then apply the local law.
     hypotheses : int
         Peaks of the global correlation tried.
+    handover_angle : float
+        Visual servoing with ``rotation_search="global"``: the law takes over once the
+        best hypothesis' rotation is this close to the identity, radians.
     climbs : int
         Hypotheses climbed after they have been located and scored.
     hypothesis_iterations : int
@@ -123,6 +128,7 @@ class SpectralRegistrationOption:
     preconditioned: bool = True
     rotation_search: str = "local"
     hypotheses: int = 32
+    handover_angle: float = np.deg2rad(15.0)
     climbs: int = 4
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
@@ -156,7 +162,8 @@ class SpectralRegistrationOption:
             raise ValueError(
                 f"voxel_weighting must be one of {SPLAT_MODES}, got {self.voxel_weighting!r}"
             )
-        for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory"):
+        for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory",
+                     "handover_angle"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.rotation_search not in ("local", "global"):

@@ -12,7 +12,6 @@ from numpy.typing import ArrayLike, NDArray
 from . import so3
 from .cloud import as_arrays, to_legacy
 from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
-from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["IterationRecord", "SpectralRegistrationResult", "registration_spectral"]
@@ -193,21 +192,6 @@ def _climb(
         pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
 
 
-def _score(
-    stepper: SpectralStepper,
-    moving: MovingCloud,
-    rotation: NDArray[np.float64],
-    centre: NDArray[np.float64],
-    peak: float,
-) -> float:
-    """How well a hypothesis fits, by ``option.hypothesis_score``: the phase-correlation
-    peak ``peak``, or the fitness with the moving cloud turned by ``rotation`` and its
-    centroid at ``centre`` (metres)."""
-    if stepper.option.hypothesis_score == "translation_peak":
-        return peak
-    return stepper.fitness(moving, rotation, centre - moving.centroid)
-
-
 def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
     """Best score minus the best score of a climb ending over ``DISTINCT_ANGLE`` away
     (in rotation) from the best; the best score when every climb ends near it."""
@@ -221,19 +205,13 @@ def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
 def _hypotheses(
     stepper: SpectralStepper, moving: MovingCloud, around: NDArray[np.float64] | None = None
 ) -> list[tuple[float, _Climb]]:
-    """A climb from each of the ``option.hypotheses`` highest peaks of ``C_r`` over SO(3),
-    placed where the phase correlation puts the turned moving cloud (searched near
-    ``around`` when given), with its score."""
-    option = stepper.option
-    F, G = stepper.rotation_spectra(moving)
-    samples = option.search_samples or 4 * option.bandwidth
-    grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
-    scored = []
-    for R, _ in peaks(grid, count=option.hypotheses):
-        centre, peak = stepper.locate(moving, R, around=around)
-        climb = _Climb(_Pose(moving.centroid, R, centre - moving.centroid), predicted=centre)
-        scored.append((_score(stepper, moving, R, centre, peak), climb))
-    return scored
+    """A climb from each of :meth:`SpectralStepper.hypotheses` (placed near ``around``
+    when given), with its score."""
+    return [
+        (h.score, _Climb(_Pose(moving.centroid, h.rotation, h.centre - moving.centroid),
+                         predicted=h.centre))
+        for h in stepper.hypotheses(moving, around=around)
+    ]
 
 
 def _by_score(scored: list[tuple[float, _Climb]]) -> list[tuple[float, _Climb]]:
@@ -274,7 +252,7 @@ def _global_search(
             climb.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
         _climb(climb.stepper or stepper, moving, climb, budget, *args)
         last = climb.history[-1]
-        fit = _score(stepper, moving, last.rotation, climb.predicted, last.translation_peak)
+        fit = stepper.score(moving, last.rotation, climb.predicted, last.translation_peak)
         scored.append((fit * 4.0 * np.pi * last.correlation, climb))
     return _by_score(scored)
 

@@ -13,7 +13,9 @@ the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full correct
 and the law applies ``T <- T + lambda_t grad_glob T``, ``R <- R exp(lambda_r hat(step))``.
 :meth:`SpectralStepper.step` does one cycle for a freshly captured cloud (pose identity),
 as visual servoing needs; :func:`o3d_spectral.registration_spectral` iterates
-:meth:`~SpectralStepper.evaluate` on one source cloud.
+:meth:`~SpectralStepper.evaluate` on one source cloud. Both can start from
+:meth:`SpectralStepper.hypotheses`: the peaks of the rotation correlation over the whole
+of SO(3), each placed by phase correlation.
 """
 
 from __future__ import annotations
@@ -34,9 +36,10 @@ from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .options import SpectralRegistrationOption
 from .rotation import curvature_scale, gradient, rotation_step
+from .so3fft import correlation_grid, peaks
 from .translation import cross_power_peak
 
-__all__ = ["MovingCloud", "Evaluation", "Step", "SpectralStepper", "FOCUS_SHARE"]
+__all__ = ["MovingCloud", "Evaluation", "Hypothesis", "Step", "SpectralStepper", "FOCUS_SHARE"]
 
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
@@ -100,6 +103,31 @@ class Evaluation:
     translation_peak: float
     cost_translation: float
     cost_rotation: float
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A peak of the rotation correlation over SO(3), placed by phase correlation.
+
+    The moving cloud fits the fixed one at ``x -> rotation (x - c) + centre`` (``c``:
+    its centroid).
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        The peak's rotation, about the moving cloud's centroid.
+    centre : ndarray, shape (3,)
+        Where the phase correlation puts the turned cloud's centroid, metres.
+    translation_peak : float
+        Height of that phase-correlation peak in [0, 1].
+    score : float
+        ``translation_peak``, or the fitness there (``option.hypothesis_score``).
+    """
+
+    rotation: NDArray[np.float64]
+    centre: NDArray[np.float64]
+    translation_peak: float
+    score: float
 
 
 @dataclass(frozen=True)
@@ -181,7 +209,7 @@ class SpectralStepper:
         self.target_coefficients = self._smoothed_levels(raw)
         self.target_points = points
         self.viewpoint = self._viewpoint(prepared)
-        self.level = 0
+        self.reset()
 
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
         """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
@@ -247,8 +275,10 @@ class SpectralStepper:
         return len(self.option.egi_smoothing)
 
     def reset(self) -> None:
-        """Start again from the coarsest smoothing level (for a new servoing run)."""
+        """Start again from the coarsest smoothing level, and from the global search
+        when ``option.rotation_search`` is ``"global"`` (for a new servoing run)."""
         self.level = 0
+        self.searching = self.option.rotation_search == "global"
 
     # -- preparation -------------------------------------------------------------------
     def _prepare(self, cloud: object, name: str) -> PreparedCloud:
@@ -455,10 +485,59 @@ class SpectralStepper:
         peak : float
             Height of the phase-correlation peak in [0, 1].
         """
-        R = np.asarray(rotation, dtype=np.float64)
+        centre, peak, _ = self._locate(moving, np.asarray(rotation, dtype=np.float64), around)
+        return centre, peak
+
+    def _locate(
+        self, moving: MovingCloud, R: NDArray[np.float64], around: ArrayLike | None
+    ) -> tuple[NDArray[np.float64], float, float]:
+        """:meth:`locate`, and the translation cost ``J_t`` before the shift."""
         moved, _, _ = self._visible(moving, R, np.zeros(3))
-        shift, peak, _, _ = self._phase_correlate(moving, moved, moving.centroid, around)
-        return moving.centroid + shift, peak
+        shift, peak, buffer, box = self._phase_correlate(moving, moved, moving.centroid, around)
+        cost = self._translation_cost(buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box)
+        return moving.centroid + shift, peak, cost
+
+    def hypotheses(
+        self, moving: MovingCloud, *, around: ArrayLike | None = None, level: int = -1
+    ) -> list[Hypothesis]:
+        """The ``option.hypotheses`` highest peaks of ``C_r`` over SO(3), placed and scored.
+
+        ``C_r`` is evaluated on a grid of ``option.search_samples`` Euler angles by an SO(3)
+        Fourier transform (:func:`o3d_spectral.so3fft.correlation_grid`); each peak's
+        rotation is located by phase correlation (:meth:`locate`, near ``around`` when
+        given) and scored by ``option.hypothesis_score``.
+
+        Parameters
+        ----------
+        moving : MovingCloud
+        around : array_like, shape (3,), optional
+            Expected centroid, metres.
+        level : int
+            EGI smoothing level of the correlation.
+
+        Returns
+        -------
+        list of Hypothesis
+            Best score first.
+        """
+        F, G = self.rotation_spectra(moving, level)
+        samples = self.option.search_samples or 4 * self.option.bandwidth
+        grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+        found = []
+        for R, _ in peaks(grid, count=self.option.hypotheses):
+            centre, peak = self.locate(moving, R, around=around)
+            found.append(Hypothesis(R, centre, peak, self.score(moving, R, centre, peak)))
+        return sorted(found, key=lambda h: -h.score)
+
+    def score(
+        self, moving: MovingCloud, rotation: ArrayLike, centre: ArrayLike, peak: float
+    ) -> float:
+        """How well a pose fits, by ``option.hypothesis_score``: the phase-correlation
+        peak ``peak``, or the fitness with the moving cloud turned by ``rotation`` and its
+        centroid at ``centre`` (metres)."""
+        if self.option.hypothesis_score == "translation_peak":
+            return peak
+        return self.fitness(moving, rotation, np.asarray(centre) - moving.centroid)
 
     def evaluate(
         self,
@@ -552,8 +631,12 @@ class SpectralStepper:
     def step(self, cloud: object) -> Step:
         """One control cycle for a freshly captured cloud (paper, Algorithm 1, loop body).
 
-        Uses the current smoothing level (:attr:`level`) and moves to the next finer
-        one once the rotation step is small; :meth:`reset` starts again.
+        With ``option.rotation_search="global"``, the first cycles head for the best of
+        :meth:`hypotheses` (the whole of SO(3) searched again on each capture, the gains
+        applied to its full correction) until it lies within ``option.handover_angle``
+        of the identity; the law then takes over for good (:attr:`searching`). The law
+        uses the current smoothing level (:attr:`level`) and moves to the next finer one
+        once the rotation step is small; :meth:`reset` starts again.
 
         Parameters
         ----------
@@ -565,7 +648,32 @@ class SpectralStepper:
         Step
         """
         moving = self.moving(cloud, "cloud")
+        if self.searching:
+            evaluation = self._towards_best_hypothesis(moving)
+            if evaluation is not None:
+                return Step(*self.increments(evaluation), moving.centroid, evaluation)
+            self.searching = False
         evaluation = self.evaluate(moving, level=self.level)
         self.level = self.next_level(self.level, evaluation)
         delta_rotation, delta_translation = self.increments(evaluation)
         return Step(delta_rotation, delta_translation, moving.centroid, evaluation)
+
+    def _towards_best_hypothesis(self, moving: MovingCloud) -> Evaluation | None:
+        """Full corrections to the best of :meth:`hypotheses` (its rotation and where the
+        phase correlation puts the turned cloud), or None when its rotation is within
+        ``option.handover_angle`` of the identity (the local law's turn)."""
+        best = self.hypotheses(moving)[0]
+        rotation = so3.log(best.rotation)
+        if np.linalg.norm(rotation) <= self.option.handover_angle:
+            return None
+        centre, peak, cost_t = self._locate(moving, best.rotation, None)
+        local = gradient(*self.rotation_spectra(moving), best.rotation)
+        return Evaluation(
+            translation=centre - moving.centroid,
+            rotation=rotation,
+            rotation_gradient=local.gradient,
+            correlation=local.value,
+            translation_peak=peak,
+            cost_translation=cost_t,
+            cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
+        )

@@ -5,6 +5,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
+from o3d_spectral import so3
 from o3d_spectral.symmetry import rotation_error, translation_error
 from tests.conftest import sample_model
 from tests.test_registration import random_motion
@@ -117,3 +118,39 @@ def test_focused_egi_is_that_of_the_normals_in_the_ball():
     # Near the object's own points: the same normals.
     near = stepper.focused(obj[:, :3], 0.001)
     np.testing.assert_allclose(near.target_coefficients[-1], alone.target_coefficients[-1])
+
+
+def test_global_steps_head_for_a_far_rotation_then_hand_over_to_the_law():
+    """From 120 degrees, beyond the law's reach, the global search's correction is the
+    true one (to the grid's resolution), its increments follow the gains, and the law
+    takes over once the best hypothesis is within the handover angle."""
+    reference = sample_model("power_drill", 8000)
+    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
+    stepper = o3d_spectral.SpectralStepper(reference, 0.008, option=option)
+    assert stepper.searching
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    start = np.eye(4)
+    start[:3, :3] = so3.exp(np.deg2rad(120.0) * axis)
+    start[:3, 3] = [0.05, -0.02, 0.03]
+    current = o3d.geometry.PointCloud(reference).transform(start)
+    step = stepper.step(current)
+    assert stepper.searching  # still far: this was a global step
+    full = np.eye(4)
+    full[:3, :3] = so3.exp(step.evaluation.rotation)
+    pivot = step.pivot
+    full[:3, 3] = pivot + step.evaluation.translation - full[:3, :3] @ pivot
+    assert rotation_error(full @ start, np.eye(4)) < 6.0  # Euler grid step: 5.6 degrees
+    w = step.evaluation.rotation  # the gain, capped at max_rotation_step
+    applied = min(0.5 * np.linalg.norm(w), option.max_rotation_step) / np.linalg.norm(w)
+    np.testing.assert_allclose(step.delta_rotation, so3.exp(applied * w), atol=1e-12)
+    moved = step.transformation @ start
+    for _ in range(12):
+        current = o3d.geometry.PointCloud(reference).transform(moved)
+        step = stepper.step(current)
+        moved = step.transformation @ moved
+        if not stepper.searching:
+            break
+    assert not stepper.searching
+    assert rotation_error(moved, np.eye(4)) < 15.0
+    stepper.reset()
+    assert stepper.searching and stepper.level == 0
