@@ -91,6 +91,23 @@ def test_inverse_kinematics_reaches_a_pose_within_limits(arm):
     assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 1e-4
 
 
+def test_draw_trial_redraws_the_desired_pose_when_no_start_fits(arm):
+    # Seed 35's first desired pose admits no start meeting the constraints (sample_start
+    # raises); another desired pose is drawn. Seeds whose first pose fits are unchanged.
+    sensor = servo.Sensor()
+    _, desired_q, start, _ = servo.draw_trial(35, arm, sensor)
+    assert 0.2 <= start.translation <= 0.3 + 1e-9
+    assert np.deg2rad(30.0) <= start.rotation <= np.deg2rad(40.0) + 1e-9
+    assert 0.2 <= start.visible_fraction <= 0.9
+    rng = np.random.default_rng(0)
+    scene = servo.make_tabletop(rng)
+    first_q, desired = servo.desired_pose(arm, scene, rng)
+    expected = servo.sample_start(arm, sensor, scene, desired, rng)
+    _, drawn_q, drawn, _ = servo.draw_trial(0, arm, sensor)
+    np.testing.assert_array_equal(drawn_q, first_q)
+    np.testing.assert_array_equal(drawn.q, expected.q)
+
+
 def test_short_servo_run_converges_and_respects_joint_limits(arm):
     rng = np.random.default_rng(7)
     sensor = servo.Sensor()

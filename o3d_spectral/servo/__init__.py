@@ -16,7 +16,16 @@ paper's Algorithm 1), ``figures``. Needs the ``servo`` extra (pybullet); see
 """
 
 from .control import camera_twist, damped_pseudo_inverse, joint_velocities, limit_velocities
-from .loop import Cycle, ServoOptions, ServoRun, Trial, pose_errors, random_trial, servo
+from .loop import (
+    Cycle,
+    ServoOptions,
+    ServoRun,
+    Trial,
+    draw_trial,
+    pose_errors,
+    random_trial,
+    servo,
+)
 from .robot import HAND_EYE, Arm
 from .scene import (
     WORLD_FROM_BASE,
@@ -49,4 +58,5 @@ __all__ = [
     "pose_errors",
     "servo",
     "random_trial",
+    "draw_trial",
 ]

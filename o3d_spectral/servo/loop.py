@@ -25,7 +25,11 @@ from .control import camera_twist, joint_velocities, limit_velocities
 from .robot import Arm
 from .scene import Sensor, Start, Tabletop, desired_pose, make_tabletop, sample_start
 
-__all__ = ["ServoOptions", "Cycle", "ServoRun", "Trial", "pose_errors", "servo", "random_trial"]
+__all__ = ["ServoOptions", "Cycle", "ServoRun", "Trial", "pose_errors", "servo", "random_trial",
+           "draw_trial"]
+
+#: Desired poses :func:`draw_trial` draws before giving up on finding a start.
+DESIRED_POSE_ATTEMPTS = 5
 
 
 @dataclass(frozen=True)
@@ -237,18 +241,35 @@ class Trial:
     run: ServoRun
 
 
-def random_trial(
-    seed: int, arm: Arm, sensor: Sensor, *, options: ServoOptions | None = None
-) -> Trial:
-    """Draw a tabletop, a desired pose and a far start from ``seed``, then servo.
+def draw_trial(
+    seed: int, arm: Arm, sensor: Sensor
+) -> tuple[Tabletop, NDArray[np.float64], Start, np.random.Generator]:
+    """The tabletop, desired joint positions and start of trial ``seed``, and the
+    generator (its state after the draws) that then drives the sensor noise.
 
-    Every random choice (scene, poses, sensor noise) comes from
-    ``numpy.random.default_rng(seed)``, so a seed reproduces a trial exactly.
+    Every random choice comes from ``numpy.random.default_rng(seed)``. When no start meets
+    :func:`~o3d_spectral.servo.scene.sample_start`'s constraints from the desired pose
+    drawn, another desired pose is drawn (up to ``DESIRED_POSE_ATTEMPTS``).
     """
     rng = np.random.default_rng(seed)
     scene = make_tabletop(rng)
-    desired_q, desired = desired_pose(arm, scene, rng)
-    start = sample_start(arm, sensor, scene, desired, rng)
+    attempts = DESIRED_POSE_ATTEMPTS
+    while True:
+        desired_q, desired = desired_pose(arm, scene, rng)
+        try:
+            return scene, desired_q, sample_start(arm, sensor, scene, desired, rng), rng
+        except RuntimeError:  # no far, partly-out-of-view start from here: another pose
+            attempts -= 1
+            if attempts == 0:
+                raise
+
+
+def random_trial(
+    seed: int, arm: Arm, sensor: Sensor, *, options: ServoOptions | None = None
+) -> Trial:
+    """Draw a tabletop, a desired pose and a far start from ``seed`` (:func:`draw_trial`),
+    then servo; a seed reproduces a trial exactly."""
+    scene, desired_q, start, rng = draw_trial(seed, arm, sensor)
     run = servo(arm, sensor, scene, desired_q=desired_q, start_q=start.q, rng=rng,
                 options=options)
     return Trial(seed, scene, start, run)
