@@ -46,6 +46,10 @@ class SpectralRegistrationOption:
     handover_angle : float
         Visual servoing with ``rotation_search="global"``: the law takes over once the
         best hypothesis' rotation is this close to the identity, radians.
+    law_reach : float
+        Visual servoing with ``rotation_search="global"``: when the law's increments
+        since the handover add up to a turn larger than this (radians), the global
+        search starts again.
     climbs : int
         Hypotheses climbed after they have been located and scored.
     hypothesis_iterations : int
@@ -128,7 +132,8 @@ class SpectralRegistrationOption:
     preconditioned: bool = True
     rotation_search: str = "local"
     hypotheses: int = 32
-    handover_angle: float = np.deg2rad(15.0)
+    handover_angle: float = np.deg2rad(3.0)
+    law_reach: float = np.deg2rad(15.0)
     climbs: int = 4
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
@@ -163,7 +168,7 @@ class SpectralRegistrationOption:
                 f"voxel_weighting must be one of {SPLAT_MODES}, got {self.voxel_weighting!r}"
             )
         for name in ("max_rotation_step", "smoothing_switch", "peak_width", "max_grid_memory",
-                     "handover_angle"):
+                     "handover_angle", "law_reach"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.rotation_search not in ("local", "global"):

@@ -634,7 +634,9 @@ class SpectralStepper:
         With ``option.rotation_search="global"``, the first cycles head for the best of
         :meth:`hypotheses` (the whole of SO(3) searched again on each capture, the gains
         applied to its full correction) until it lies within ``option.handover_angle``
-        of the identity; the law then takes over for good (:attr:`searching`). The law
+        of the identity; the law then takes over (:attr:`searching` turns False), until
+        its increments add up to a turn over ``option.law_reach`` (it has left the
+        basin it was handed: the search starts again). The law
         uses the current smoothing level (:attr:`level`) and moves to the next finer one
         once the rotation step is small; :meth:`reset` starts again.
 
@@ -652,10 +654,14 @@ class SpectralStepper:
             evaluation = self._towards_best_hypothesis(moving)
             if evaluation is not None:
                 return Step(*self.increments(evaluation), moving.centroid, evaluation)
-            self.searching = False
+            self.searching, self._turned = False, np.eye(3)
         evaluation = self.evaluate(moving, level=self.level)
         self.level = self.next_level(self.level, evaluation)
         delta_rotation, delta_translation = self.increments(evaluation)
+        if self.option.rotation_search == "global":
+            self._turned = delta_rotation @ self._turned
+            if so3.rotation_angle(self._turned) > self.option.law_reach:
+                self.reset()  # the law has left the hypothesis' basin: search again
         return Step(delta_rotation, delta_translation, moving.centroid, evaluation)
 
     def _towards_best_hypothesis(self, moving: MovingCloud) -> Evaluation | None:
@@ -667,9 +673,10 @@ class SpectralStepper:
         if np.linalg.norm(rotation) <= self.option.handover_angle:
             return None
         centre, peak, cost_t = self._locate(moving, best.rotation, None)
+        translation = centre - moving.centroid
         local = gradient(*self.rotation_spectra(moving), best.rotation)
         return Evaluation(
-            translation=centre - moving.centroid,
+            translation=translation,
             rotation=rotation,
             rotation_gradient=local.gradient,
             correlation=local.value,

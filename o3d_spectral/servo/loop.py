@@ -57,9 +57,16 @@ class ServoOptions:
         The control law's settings (gains ``lambda_t``, ``lambda_r``, ...). Default: the
         library's, without back-face culling (``target_viewpoint=None``): both clouds
         are single views in their own sensor frames, so the culling's incidence weighting
-        would weigh the current cloud's EGI and not the reference's; and with half the
+        would weigh the current cloud's EGI and not the reference's; with half the
         library's translation gain (``lambda_t=0.25``): from 30-40 degrees the camera
-        then translates less before the rotation has settled (docs/servo.md).
+        then translates less before the rotation has settled; with the global search
+        first (``rotation_search="global"`` on a 128^3 Euler grid, see
+        :meth:`o3d_spectral.SpectralStepper.step`): from 30-40 degrees the law alone
+        may climb a wrong peak of the whole-scene correlation; and with normals
+        averaged in 5 mm cells for the EGI (``egi_voxel_size``; the library's default
+        is a quarter voxel, 2.5 mm here), coarser than this 320 x 240 sensor's
+        spacing of about 2 mm at 0.6 m, so that oblique surfaces are not
+        under-counted (docs/servo.md).
     """
 
     period: float = 0.1
@@ -70,7 +77,10 @@ class ServoOptions:
     damping: float = 0.01
     limit_margin: float = np.deg2rad(1.0)
     registration: SpectralRegistrationOption = field(
-        default_factory=lambda: SpectralRegistrationOption(target_viewpoint=None, lambda_t=0.25)
+        default_factory=lambda: SpectralRegistrationOption(
+            target_viewpoint=None, lambda_t=0.25, rotation_search="global", search_samples=128,
+            egi_voxel_size=0.005,
+        )
     )
 
     def __post_init__(self) -> None:
