@@ -35,7 +35,7 @@ from .egi import normalise, smooth
 from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .options import SpectralRegistrationOption
-from .rotation import curvature_scale, gradient, rotation_step
+from .rotation import RotationGradient, curvature_scale, gradient, rotation_step
 from .so3fft import correlation_grid, peaks
 from .translation import cross_power_peak
 
@@ -103,6 +103,26 @@ class Evaluation:
     translation_peak: float
     cost_translation: float
     cost_rotation: float
+
+
+def _evaluation(
+    translation: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+    local: RotationGradient,
+    peak: float,
+    cost_translation: float,
+) -> Evaluation:
+    """An :class:`Evaluation` from the full corrections, the rotation correlation's
+    derivatives ``local`` at the pose, the phase-correlation peak and ``J_t``."""
+    return Evaluation(
+        translation=translation,
+        rotation=rotation,
+        rotation_gradient=local.gradient,
+        correlation=local.value,
+        translation_peak=peak,
+        cost_translation=cost_translation,
+        cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
+    )
 
 
 @dataclass(frozen=True)
@@ -413,7 +433,9 @@ class SpectralStepper:
         )
 
     def _translation_cost(self, grid: NDArray[np.float64], box: Box) -> float:
-        """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice."""
+        """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice; ``grid`` is
+        the moving grid on ``box``, possibly zero-padded beyond it."""
+        grid = grid[: box.shape[0], : box.shape[1], : box.shape[2]]
         q = box.offset - self.target_box.offset
         t_shape, m_shape = np.asarray(self.target_box.shape), np.asarray(box.shape)
         lo, hi = np.maximum(q, 0), np.minimum(q + m_shape, t_shape)
@@ -494,8 +516,7 @@ class SpectralStepper:
         """:meth:`locate`, and the translation cost ``J_t`` before the shift."""
         moved, _, _ = self._visible(moving, R, np.zeros(3))
         shift, peak, buffer, box = self._phase_correlate(moving, moved, moving.centroid, around)
-        cost = self._translation_cost(buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box)
-        return moving.centroid + shift, peak, cost
+        return moving.centroid + shift, peak, self._translation_cost(buffer, box)
 
     def hypotheses(
         self, moving: MovingCloud, *, around: ArrayLike | None = None, level: int = -1
@@ -574,23 +595,13 @@ class SpectralStepper:
             # A sensor samples a surface in proportion to its projected area: cos(incidence).
             raw_egi = self._egi(moving.point_normals[facing], cosine[facing])
         shift, peak, buffer, box = self._phase_correlate(moving, moved, moving.centroid + T, around)
-        cost_t = self._translation_cost(
-            buffer[: box.shape[0], : box.shape[1], : box.shape[2]], box
-        )
+        cost_t = self._translation_cost(buffer, box)
         # Rotation: gradient of the EGI correlation, scaled to an angle.
         F, G = self._smooth(raw_egi, level), self.target_coefficients[level]
         local = gradient(F, G, R)
         scale = curvature_scale(F, G)
         step = rotation_step(local, scale, preconditioned=self.option.preconditioned)
-        return Evaluation(
-            translation=shift,
-            rotation=step,
-            rotation_gradient=local.gradient,
-            correlation=local.value,
-            translation_peak=peak,
-            cost_translation=cost_t,
-            cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
-        )
+        return _evaluation(shift, step, local, peak, cost_t)
 
     def increments(self, evaluation: Evaluation) -> tuple[NDArray, NDArray]:
         """Apply the gains: ``(exp(lambda_r hat(step)), lambda_t grad_glob T)``.
@@ -675,12 +686,4 @@ class SpectralStepper:
         centre, peak, cost_t = self._locate(moving, best.rotation, None)
         translation = centre - moving.centroid
         local = gradient(*self.rotation_spectra(moving), best.rotation)
-        return Evaluation(
-            translation=translation,
-            rotation=rotation,
-            rotation_gradient=local.gradient,
-            correlation=local.value,
-            translation_peak=peak,
-            cost_translation=cost_t,
-            cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
-        )
+        return _evaluation(translation, rotation, local, peak, cost_t)
