@@ -154,3 +154,20 @@ def test_global_steps_head_for_a_far_rotation_then_hand_over_to_the_law():
     assert rotation_error(moved, np.eye(4)) < 15.0
     stepper.reset()
     assert stepper.searching and stepper.level == 0
+
+
+@pytest.mark.parametrize("law_reach, searching_after", [(np.deg2rad(15.0), False), (1e-6, True)])
+def test_law_turning_beyond_its_reach_restarts_the_global_search(law_reach, searching_after):
+    """A 5-degree start is handed to the law at once (handover angle 30 degrees); the law's
+    first turn stays within a 15-degree reach, but exceeds a reach of 1e-6 rad, which
+    sends the stepper back to the global search at the coarse level."""
+    reference = sample_model("mustard_bottle", 6000)
+    option = o3d_spectral.SpectralRegistrationOption(
+        rotation_search="global", handover_angle=np.deg2rad(30.0), law_reach=law_reach
+    )
+    stepper = o3d_spectral.SpectralStepper(reference, 0.008, option=option)
+    start = np.eye(4)
+    start[:3, :3] = so3.exp(np.deg2rad(5.0) * np.array([0.0, 0.6, 0.8]))
+    step = stepper.step(o3d.geometry.PointCloud(reference).transform(start))
+    assert so3.rotation_angle(step.delta_rotation) > 1e-6  # the law turned
+    assert stepper.searching is searching_after
