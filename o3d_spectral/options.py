@@ -43,13 +43,6 @@ class SpectralRegistrationOption:
         within ``handover_angle`` of the identity, then apply the local law.
     hypotheses : int
         Peaks of the global correlation tried.
-    handover_angle : float
-        Visual servoing with ``rotation_search="global"``: the law takes over once the
-        best hypothesis' rotation is this close to the identity, radians.
-    law_reach : float
-        Visual servoing with ``rotation_search="global"``: when the law's increments
-        since the handover add up to a turn larger than this (radians), the global
-        search starts again.
     climbs : int
         Hypotheses climbed after they have been located and scored.
     hypothesis_iterations : int
@@ -124,6 +117,13 @@ class SpectralRegistrationOption:
         off over hundreds of iterations on one grid shape (visual servoing).
     fft_precision : {"single", "double"}
         Precision of the voxel grids' FFTs; single halves their time.
+    handover_angle : float
+        Visual servoing with ``rotation_search="global"``: the law takes over once the
+        best hypothesis' rotation is this close to the identity, radians.
+    law_reach : float
+        Visual servoing with ``rotation_search="global"``: when the law's increments
+        since the handover add up to a turn larger than this (radians), the global
+        search starts again.
     """
 
     bandwidth: int = 16
@@ -132,8 +132,6 @@ class SpectralRegistrationOption:
     preconditioned: bool = True
     rotation_search: str = "local"
     hypotheses: int = 32
-    handover_angle: float = np.deg2rad(3.0)
-    law_reach: float = np.deg2rad(15.0)
     climbs: int = 4
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
@@ -155,6 +153,8 @@ class SpectralRegistrationOption:
     max_grid_memory: float = 2.0 * 2**30
     fft_planning: str = "estimate"
     fft_precision: str = "single"
+    handover_angle: float = np.deg2rad(3.0)
+    law_reach: float = np.deg2rad(15.0)
 
     def __post_init__(self) -> None:
         if int(self.bandwidth) != self.bandwidth or not 2 <= self.bandwidth <= 128:
