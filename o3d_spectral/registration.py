@@ -235,7 +235,7 @@ def _global_search(
     times their EGI correlation.
     """
     option = stepper.option
-    ranked = _by_score(_hypotheses(stepper, moving))
+    ranked = _hypotheses(stepper, moving)  # best first
     focus = False
     if option.egi_focus:
         located = ranked[0][1].predicted

@@ -140,6 +140,8 @@ class Hypothesis:
         Where the phase correlation puts the turned cloud's centroid, metres.
     translation_peak : float
         Height of that phase-correlation peak in [0, 1].
+    cost_translation : float
+        ``J_t`` of the turned cloud before that shift, in [0, 2].
     score : float
         ``translation_peak``, or the fitness there (``option.hypothesis_score``).
     """
@@ -147,6 +149,7 @@ class Hypothesis:
     rotation: NDArray[np.float64]
     centre: NDArray[np.float64]
     translation_peak: float
+    cost_translation: float
     score: float
 
 
@@ -299,6 +302,7 @@ class SpectralStepper:
         when ``option.rotation_search`` is ``"global"`` (for a new servoing run)."""
         self.level = 0
         self.searching = self.option.rotation_search == "global"
+        self._turned = np.eye(3)  # the law's turn since the handover (global search)
 
     # -- preparation -------------------------------------------------------------------
     def _prepare(self, cloud: object, name: str) -> PreparedCloud:
@@ -546,8 +550,8 @@ class SpectralStepper:
         grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
         found = []
         for R, _ in peaks(grid, count=self.option.hypotheses):
-            centre, peak = self.locate(moving, R, around=around)
-            found.append(Hypothesis(R, centre, peak, self.score(moving, R, centre, peak)))
+            centre, peak, cost = self._locate(moving, R, around)
+            found.append(Hypothesis(R, centre, peak, cost, self.score(moving, R, centre, peak)))
         return sorted(found, key=lambda h: -h.score)
 
     def score(
@@ -665,7 +669,7 @@ class SpectralStepper:
             evaluation = self._towards_best_hypothesis(moving)
             if evaluation is not None:
                 return Step(*self.increments(evaluation), moving.centroid, evaluation)
-            self.searching, self._turned = False, np.eye(3)
+            self.searching = False
         evaluation = self.evaluate(moving, level=self.level)
         self.level = self.next_level(self.level, evaluation)
         delta_rotation, delta_translation = self.increments(evaluation)
@@ -683,7 +687,8 @@ class SpectralStepper:
         rotation = so3.log(best.rotation)
         if np.linalg.norm(rotation) <= self.option.handover_angle:
             return None
-        centre, peak, cost_t = self._locate(moving, best.rotation, None)
-        translation = centre - moving.centroid
         local = gradient(*self.rotation_spectra(moving), best.rotation)
-        return _evaluation(translation, rotation, local, peak, cost_t)
+        return _evaluation(
+            best.centre - moving.centroid, rotation, local, best.translation_peak,
+            best.cost_translation,
+        )
