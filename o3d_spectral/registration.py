@@ -10,7 +10,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
-from .cloud import as_arrays, to_legacy
+from .cloud import as_arrays, point_to_plane_icp, to_legacy
 from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
 from .stepper import MovingCloud, SpectralStepper
 
@@ -277,23 +277,9 @@ def point_to_plane_refinement(
     ``0.4 * voxel_size`` (metres): the refinement of Open3D's global-registration
     tutorial, used by ``option.refinement`` and by the harness' FPFH baselines.
 
-    ``target`` must have normals. Runs on one thread: Open3D's multi-threaded sums
-    change the last bits of the result from run to run, and a registration must repeat
-    exactly.
+    ``target`` must have normals. Deterministic (:func:`o3d_spectral.cloud.point_to_plane_icp`).
     """
-    threads = o3d.utility.get_max_threads()
-    o3d.utility.set_max_threads(1)
-    try:
-        refined = o3d.pipelines.registration.registration_icp(
-            source,
-            target,
-            REFINEMENT_DISTANCE * voxel_size,
-            np.asarray(init, dtype=np.float64),
-            o3d.pipelines.registration.TransformationEstimationPointToPlane(),
-        )
-    finally:
-        o3d.utility.set_max_threads(threads)
-    return np.asarray(refined.transformation)
+    return point_to_plane_icp(source, target, REFINEMENT_DISTANCE * voxel_size, init)
 
 
 def _with_normals(
