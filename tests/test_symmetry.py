@@ -12,6 +12,7 @@ from o3d_spectral.symmetry import (
     Symmetry,
     model_symmetry,
     mssd,
+    refine_axis,
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
@@ -55,6 +56,47 @@ def test_recorded_symmetries_map_the_mesh_onto_itself(name):
     for s in symmetry.elements(step=np.deg2rad(45)):
         moved = (points @ s[:3, :3].T + s[:3, 3]).astype(np.float32)
         assert scene.compute_distance(o3d.core.Tensor(moved)).numpy().mean() < 0.002
+
+
+def _surface(mesh, pose, n=20000):
+    """``n`` seeded samples of ``mesh`` moved by ``pose``, with their normals."""
+    o3d.utility.random.seed(0)
+    cloud = mesh.sample_points_uniformly(n, use_triangle_normal=True)
+    return cloud.transform(pose)
+
+
+def _tilted(axis, degrees, seed):
+    """``axis`` turned by ``degrees`` about a random perpendicular direction."""
+    rng = np.random.default_rng(seed)
+    side = np.cross(axis, rng.normal(size=3))
+    return Rotation.from_rotvec(np.deg2rad(degrees) * side / np.linalg.norm(side)).apply(axis)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refine_axis_recovers_a_box_face_normal(seed):
+    """A 180-degree turn about a box's face normal maps it onto itself: started 3 degrees
+    and 2 mm off, the refinement finds that normal and a point of its line."""
+    pose = _pose(Rotation.random(random_state=seed).as_rotvec(), [0.1, -0.2, 0.5])
+    box = o3d.geometry.TriangleMesh.create_box(0.05, 0.06, 0.08).translate([-0.025, -0.03, -0.04])
+    cloud = _surface(box, pose)
+    normal, centre = pose[:3, 1], pose[:3, 3]
+    start = centre + 0.002 * pose[:3, 0]
+    axis, point = refine_axis(cloud, _tilted(normal, 3.0, seed), np.pi, start)
+    assert np.rad2deg(np.arccos(min(1.0, axis @ normal))) < 0.1
+    offset = point - centre
+    assert np.linalg.norm(offset - (offset @ normal) * normal) < 1e-4
+
+
+def test_refine_axis_recovers_a_cylinder_axis():
+    """A continuous axis, refined through a quarter turn about it."""
+    pose = _pose([0.3, -0.5, 0.2], [0.0, 0.1, 0.6])
+    cylinder = o3d.geometry.TriangleMesh.create_cylinder(0.04, 0.1, resolution=120, split=8)
+    cloud = _surface(cylinder, pose)
+    true_axis, centre = pose[:3, 2], pose[:3, 3]
+    axis, point = refine_axis(cloud, _tilted(true_axis, 3.0, 1), np.pi / 2, centre)
+    assert np.rad2deg(np.arccos(min(1.0, axis @ true_axis))) < 0.1
+    offset = point - centre
+    assert np.linalg.norm(offset - (offset @ true_axis) * true_axis) < 1e-4
 
 
 def _random_case(seed, symmetry):
