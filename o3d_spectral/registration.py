@@ -52,6 +52,9 @@ class IterationRecord:
         Phase-correlation peak height in [0, 1].
     time : float
         Seconds since the registration started, at the end of the iteration.
+    centre : ndarray, shape (3,)
+        Where the phase correlation put the source's centroid at this iteration
+        (metres, target frame, after ``init``).
     """
 
     iteration: int
@@ -65,6 +68,7 @@ class IterationRecord:
     correlation: float
     translation_peak: float
     time: float
+    centre: NDArray[np.float64]
 
 
 class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
@@ -81,17 +85,20 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         The convergence criteria were met before ``max_iteration``.
     num_iterations : int
     history : list of IterationRecord
+        The law's iterations from ``init`` (local search), or those of the hypothesis
+        climbed on to convergence (global search).
     run_time : float
         Seconds, from the call to the return (evaluation included).
     max_correspondence_distance : float
         Metres.
     translation_peak : float
-        Final phase-correlation peak height in [0, 1], a confidence figure.
+        Phase-correlation peak height in [0, 1] at the returned pose (before the
+        refinement), a confidence figure.
     hypotheses : list of (ndarray (4, 4), float)
-        Global search only: the ``option.climbs`` hypotheses that were climbed, each
-        after ``option.hypothesis_iterations`` iterations, with its score
-        (``option.hypothesis_score`` times the EGI correlation), best first (the
-        returned transformation is the first, climbed on to convergence).
+        Global search only: for each of the ``option.climbs`` hypotheses that were
+        climbed, its best-scoring iterate (before the refinement) and that score
+        (``option.hypothesis_score`` times the EGI correlation), best first. The
+        returned transformation is the first, refined.
     confidence : float
         Global search only: the best score minus that of the best hypothesis ending in a
         distinct rotation (over 10 degrees away); 0 when local.
@@ -134,8 +141,9 @@ class _Pose:
 @dataclass
 class _Climb:
     """One run of the control law: its pose, smoothing level, history, where the last
-    phase correlation put the moving cloud's centroid (None before the first), and the
-    stepper it climbs against when not the registration's own (a focused EGI)."""
+    phase correlation put the moving cloud's centroid (None before the first), the
+    stepper it climbs against when not the registration's own (a focused EGI), and the
+    scores of its iterates computed so far (:meth:`best_iterate`)."""
 
     pose: _Pose
     level: int = 0
@@ -143,6 +151,27 @@ class _Climb:
     converged: bool = False
     predicted: NDArray[np.float64] | None = None
     stepper: SpectralStepper | None = None
+    scores: list[float] = field(default_factory=list)
+
+    def best_iterate(
+        self, stepper: SpectralStepper, moving: MovingCloud
+    ) -> tuple[float, _Pose, IterationRecord]:
+        """The iterate of this climb that scores best (the first of equals), with its
+        pose: its rotation, and its centroid where its phase correlation put it.
+
+        An iterate's score is ``option.hypothesis_score`` at its pose times its EGI
+        correlation ``4 pi C_r`` (1 for identical EGIs). The law ascends ``C_r`` alone
+        on EGIs that part of either cloud is missing from; the score also weighs where
+        the voxels match, and on partial views it can fall as the law climbs away from a
+        pose it started at.
+        """
+        for record in self.history[len(self.scores) :]:
+            fit = stepper.score(moving, record.rotation, record.centre, record.translation_peak)
+            self.scores.append(fit * 4.0 * np.pi * record.correlation)
+        k = int(np.argmax(self.scores))
+        record = self.history[k]
+        pose = _Pose(moving.centroid, record.rotation, record.centre - moving.centroid)
+        return self.scores[k], pose, record
 
 
 def _climb(
@@ -178,6 +207,7 @@ def _climb(
                 correlation=evaluation.correlation,
                 translation_peak=evaluation.translation_peak,
                 time=time.perf_counter() - start,
+                centre=climb.predicted.copy(),
             )
         )
         level = stepper.next_level(climb.level, evaluation)
@@ -192,12 +222,12 @@ def _climb(
         pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
 
 
-def _confidence(ranked: list[tuple[float, _Climb]]) -> float:
-    """Best score minus the best score of a climb ending over ``DISTINCT_ANGLE`` away
-    (in rotation) from the best; the best score when every climb ends near it."""
-    best_score, best = ranked[0]
-    for score, climb in ranked[1:]:
-        if so3.rotation_angle(climb.pose.R.T @ best.pose.R) > DISTINCT_ANGLE:
+def _confidence(ranked: list[tuple[float, _Pose, IterationRecord]]) -> float:
+    """Best score minus the best score of a pose over ``DISTINCT_ANGLE`` away (in
+    rotation) from the best; the best score when every pose is near it."""
+    best_score, best, _ = ranked[0]
+    for score, pose, _ in ranked[1:]:
+        if so3.rotation_angle(pose.R.T @ best.R) > DISTINCT_ANGLE:
             return best_score - score
     return best_score
 
@@ -214,8 +244,9 @@ def _hypotheses(
     ]
 
 
-def _by_score(scored: list[tuple[float, _Climb]]) -> list[tuple[float, _Climb]]:
-    return sorted(scored, key=lambda pair: -pair[0])
+def _by_score(scored: list[tuple]) -> list[tuple]:
+    """``scored`` (tuples, score first) sorted best first (stable)."""
+    return sorted(scored, key=lambda item: -item[0])
 
 
 def _global_search(
@@ -231,8 +262,8 @@ def _global_search(
     EGI is then focused on a ball about where the best one put the moving cloud, that
     correlation's peaks are added, and each climbed hypothesis matches the normals near
     its own points (:meth:`SpectralStepper.focused`). The ``option.climbs`` best are
-    climbed ``option.hypothesis_iterations`` times and ranked again, by their score
-    times their EGI correlation.
+    climbed ``option.hypothesis_iterations`` times and ranked again, by their best
+    iterate (:meth:`_Climb.best_iterate`).
     """
     option = stepper.option
     ranked = _hypotheses(stepper, moving)  # best first
@@ -251,9 +282,7 @@ def _global_search(
             near = stepper.visible_points(moving, climb.pose.R, climb.pose.T)
             climb.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
         _climb(climb.stepper or stepper, moving, climb, budget, *args)
-        last = climb.history[-1]
-        fit = stepper.score(moving, last.rotation, climb.predicted, last.translation_peak)
-        scored.append((fit * 4.0 * np.pi * last.correlation, climb))
+        scored.append((climb.best_iterate(stepper, moving)[0], climb))
     return _by_score(scored)
 
 
@@ -347,8 +376,9 @@ def registration_spectral(
     By default the rotation search is local (the paper's gradient ascent from ``init``):
     it reliably corrects rotations up to a few tens of degrees. With
     ``option.rotation_search="global"`` it starts from the peaks of the rotation
-    correlation over all of SO(3) instead. The translation is always found globally.
-    The law's pose is then polished by a point-to-plane ICP with correspondences within
+    correlation over all of SO(3) instead, climbs the best few, and returns the iterate
+    of those climbs that scores best. The translation is always found globally.
+    The pose is then polished by a point-to-plane ICP with correspondences within
     0.4 voxel (``option.refinement``; None keeps the law's pose, correspondence-free).
 
     Examples
@@ -367,19 +397,25 @@ def registration_spectral(
 
     tolerance = (criteria.translation_tolerance or 0.02 * voxel_size, criteria.rotation_tolerance)
     result = SpectralRegistrationResult()
+    climbs: list[_Climb] = []
     if option.rotation_search == "local":
         best = _Climb(_Pose(moving.centroid, np.eye(3)))
     else:
         ranked = _global_search(stepper, moving, criteria, tolerance, init, start)
-        best = ranked[0][1]
-        result.hypotheses = [(climb.pose.matrix() @ init, score) for score, climb in ranked]
-        result.confidence = _confidence(ranked)
+        climbs = [climb for _, climb in ranked]
+        best = climbs[0]
     left = criteria.max_iteration - len(best.history)
     _climb(best.stepper or stepper, moving, best, left, tolerance, init, start)
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
-    result.translation_peak = best.history[-1].translation_peak
-    pose = best.pose
+    if climbs:  # the best iterate of all climbs
+        candidates = _by_score([climb.best_iterate(stepper, moving) for climb in climbs])
+        _, pose, record = candidates[0]
+        result.hypotheses = [(p.matrix() @ init, score) for score, p, _ in candidates]
+        result.confidence = _confidence(candidates)
+    else:
+        pose, record = best.pose, best.history[-1]
+    result.translation_peak = record.translation_peak
 
     transformation = pose.matrix() @ init
     source_legacy, target_legacy = to_legacy(source), to_legacy(target)  # once, for both
