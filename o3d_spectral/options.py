@@ -39,9 +39,10 @@ class SpectralRegistrationOption:
         cloud (:meth:`o3d_spectral.SpectralStepper.locate`) and score it; climb the
         ``climbs`` best for ``hypothesis_iterations``; climb the best of those on to
         convergence; return the best-scoring iterate of all the climbs (its score:
-        ``hypothesis_score`` times its EGI correlation). In :meth:`o3d_spectral.SpectralStepper.step` (visual servoing):
-        head for the best located peak, searched again on each capture, until it is
-        within ``handover_angle`` of the identity, then apply the local law.
+        ``hypothesis_score`` times its EGI correlation). In
+        :meth:`o3d_spectral.SpectralStepper.step` (visual servoing): head for the best
+        located peak, searched again on each capture, until it is within
+        ``handover_angle`` of the identity, then apply the local law.
     hypotheses : int
         Peaks of the global correlation tried.
     climbs : int
