@@ -23,8 +23,8 @@ from functools import cache
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial.transform import Rotation
 
+from o3d_spectral import so3
 from o3d_spectral.cloud import point_to_plane_icp
 from o3d_spectral.data import load_model
 
@@ -219,7 +219,7 @@ def refine_axis(
     refined = point_to_plane_icp(
         cloud, cloud, REFINE_DISTANCE, _about_point(axis, angle, center)
     )
-    direction = Rotation.from_matrix(refined[:3, :3]).as_rotvec()
+    direction = so3.log(refined[:3, :3])
     direction /= np.linalg.norm(direction)
     direction *= np.sign(direction @ axis)
     # Points of the axis are fixed: (I - R) p = t; least squares picks one of them.
