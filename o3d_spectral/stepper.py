@@ -220,19 +220,35 @@ class SpectralStepper:
         self.voxel_size = float(voxel_size)
         prepared = self._prepare(target, "target")
         points = prepared.points
-        lower, upper = points.min(axis=0), points.max(axis=0)
-        self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, self.voxel_size)
-        self.target_box = self.lattice.box_around(lower, upper, margin=2)
-        check_memory(self.target_box.shape, self.option.max_grid_memory, "target")
-        grid = splat(points, self.target_box, mode=self.option.voxel_weighting)
-        self._target_grid = grid / np.linalg.norm(grid)
-        self._target_spectra: dict[tuple, NDArray[np.complexfloating]] = {}
+        self._set_grid(points, self.voxel_size)
         self._target_normals, self._target_normal_points = prepared.normals, prepared.normal_points
         raw = self._egi(prepared.normals)
         self.target_coefficients = self._smoothed_levels(raw)
         self.target_points = points
         self.viewpoint = self._viewpoint(prepared)
         self.reset()
+
+    def _set_grid(self, points: NDArray[np.float64], voxel_size: float) -> None:
+        """The fixed voxel grid: ``points`` (metres) splatted on voxels of ``voxel_size``."""
+        self.voxel_size = voxel_size
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, voxel_size)
+        self.target_box = self.lattice.box_around(lower, upper, margin=2)
+        check_memory(self.target_box.shape, self.option.max_grid_memory, "target")
+        grid = splat(points, self.target_box, mode=self.option.voxel_weighting)
+        self._target_grid = grid / np.linalg.norm(grid)
+        self._target_spectra: dict[tuple, NDArray[np.complexfloating]] = {}
+
+    def coarsened(self, factor: int) -> SpectralStepper:
+        """This stepper with voxels ``factor`` times larger, for placing many rotations
+        cheaply (a grid ``factor**3`` times smaller).
+
+        The fixed grid is the same down-sampled points splatted on the coarser lattice;
+        the EGI spectra are shared. Moving clouds from :meth:`moving` work with both.
+        """
+        out = copy.copy(self)
+        out._set_grid(self.target_points, self.voxel_size * factor)
+        return out
 
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
         """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
@@ -523,7 +539,12 @@ class SpectralStepper:
         return moving.centroid + shift, peak, self._translation_cost(buffer, box)
 
     def hypotheses(
-        self, moving: MovingCloud, *, around: ArrayLike | None = None, level: int = -1
+        self,
+        moving: MovingCloud,
+        *,
+        around: ArrayLike | None = None,
+        level: int = -1,
+        rotations: ArrayLike | None = None,
     ) -> list[Hypothesis]:
         """The ``option.hypotheses`` highest peaks of ``C_r`` over SO(3), placed and scored.
 
@@ -539,17 +560,21 @@ class SpectralStepper:
             Expected centroid, metres.
         level : int
             EGI smoothing level of the correlation.
+        rotations : array_like, shape (K, 3, 3), optional
+            Rotations to place and score instead of the correlation's peaks.
 
         Returns
         -------
         list of Hypothesis
             Best score first.
         """
-        F, G = self.rotation_spectra(moving, level)
-        samples = self.option.search_samples or 4 * self.option.bandwidth
-        grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+        if rotations is None:
+            F, G = self.rotation_spectra(moving, level)
+            samples = self.option.search_samples or 4 * self.option.bandwidth
+            grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+            rotations = [R for R, _ in peaks(grid, count=self.option.hypotheses)]
         found = []
-        for R, _ in peaks(grid, count=self.option.hypotheses):
+        for R in np.asarray(rotations, dtype=np.float64).reshape(-1, 3, 3):
             centre, peak, cost = self._locate(moving, R, around)
             found.append(Hypothesis(R, centre, peak, cost, self.score(moving, R, centre, peak)))
         return sorted(found, key=lambda h: -h.score)

@@ -86,6 +86,33 @@ def test_windowed_search_finds_the_global_shift_on_a_smaller_grid():
     assert off.search_box(off.moving(drill), around=expected) is off.target_box
 
 
+def test_coarsened_stepper_places_rotations_on_a_coarser_grid():
+    """A rotated drill on a wide plane: the coarse stepper (voxels twice as large, half
+    as many per axis, give or take the margins) places it within a coarse voxel, and
+    the candidate rotation nearest the truth gets the highest peak; the stepper it came
+    from is unchanged."""
+    shift = np.array([0.23, -0.17, 0.05])
+    drill, scene = _object_on_a_wide_plane(shift)
+    stepper = o3d_spectral.SpectralStepper(scene, 0.008)
+    grid, box = stepper._target_grid.copy(), stepper.target_box
+    coarse = stepper.coarsened(2)
+    assert coarse.voxel_size == 0.016
+    assert all(c <= f // 2 + 3 for c, f in zip(coarse.target_box.shape, box.shape, strict=True))
+    assert stepper.voxel_size == 0.008 and stepper.target_box is box
+    np.testing.assert_array_equal(stepper._target_grid, grid)
+    turn = so3.exp([0.0, 0.0, 0.5])  # the drill in the scene turned by 0.5 rad about z
+    centre = drill.get_center()
+    turned = (np.asarray(drill.points) - centre) @ turn.T + centre
+    moving = coarse.moving(np.hstack([turned, np.asarray(drill.normals) @ turn.T]))
+    undo = turn.T
+    candidates = [so3.exp([0.0, 0.0, a]) @ undo for a in (0.0, 0.6, 1.5, 3.0)]
+    found = coarse.hypotheses(moving, rotations=candidates)
+    assert len(found) == len(candidates)
+    best = max(found, key=lambda h: h.translation_peak)
+    np.testing.assert_allclose(best.rotation, undo)
+    np.testing.assert_allclose(best.centre, centre + shift, atol=0.016)
+
+
 def test_window_is_not_used_where_it_would_not_shrink_the_fft():
     drill = sample_model("power_drill", 2000)
     stepper = o3d_spectral.SpectralStepper(drill, 0.008)
