@@ -34,12 +34,13 @@ class SpectralRegistrationOption:
         step) rather than by its mean (the paper's plain gradient, scaled).
     rotation_search : {"local", "global"}
         ``"local"``: the paper's gradient ascent from ``init``. ``"global"``: evaluate the
-        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`); place each
-        of its ``hypotheses`` highest peaks where the phase correlation puts the turned
-        cloud (:meth:`o3d_spectral.SpectralStepper.locate`) and score it; climb the
-        ``climbs`` best for ``hypothesis_iterations``; climb the best of those on to
-        convergence; return the best-scoring iterate of all the climbs (its score:
-        ``hypothesis_score`` times its EGI correlation). In
+        rotation correlation over all of SO(3) (:mod:`o3d_spectral.so3fft`); place its
+        ``hypotheses`` highest peaks and ``sampled_rotations`` more where the phase
+        correlation puts the turned cloud (:meth:`o3d_spectral.SpectralStepper.locate`)
+        and score the best placed; climb the ``climbs`` best for
+        ``hypothesis_iterations``; climb the best of those on to convergence; return the
+        best-scoring iterate of all the climbs (its score: ``hypothesis_score`` times
+        its EGI correlation; with ``rank_refined``, the score after ``refinement``). In
         :meth:`o3d_spectral.SpectralStepper.step` (visual servoing): head for the best
         located peak, searched again on each capture, until it is within
         ``handover_angle`` of the identity, then apply the local law.
@@ -63,6 +64,21 @@ class SpectralRegistrationOption:
         rotation and the translation the correlation found. After their climb, either
         is multiplied by the EGI correlation there (``4 pi C_r`` in [-1, 1]): a pose
         must match both the shape and the normals.
+    sampled_rotations : int
+        Global search: rotations spread evenly over SO(3)
+        (:func:`o3d_spectral.so3.uniform_samples`) added to the correlation's peaks as
+        candidates. Where part of either cloud is missing (occlusion, a scene) the
+        EGI's peaks may all be far from the right rotation while the voxels still match
+        there. 0: the EGI's peaks alone.
+    rank_refined : bool
+        Global search: refine each climb's best iterate (``refinement``) and rank them
+        by their score there, rather than refine the best-scoring iterate alone. A few
+        degrees off, a sharp phase-correlation peak is low; compared polished, the
+        right pose stands out more often.
+    sampling_coarsening : int
+        Every candidate rotation is first placed by phase correlation on a grid this
+        many times coarser; the ``hypotheses`` with the highest peaks are placed again,
+        and scored, on the full grid near there.
     search_samples : int or None
         Samples of each Euler angle in the global grid (``4 * bandwidth`` when None:
         steps of 180 / (2B) degrees in alpha and gamma).
@@ -138,6 +154,9 @@ class SpectralRegistrationOption:
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
     egi_focus: bool = True
+    sampled_rotations: int = 0
+    sampling_coarsening: int = 2
+    rank_refined: bool = False
     search_samples: int | None = None
     max_rotation_step: float = 0.35
     egi_binned: bool = False
@@ -191,6 +210,15 @@ class SpectralRegistrationOption:
         if self.hypothesis_iterations < 1:
             raise ValueError(
                 f"hypothesis_iterations must be >= 1, got {self.hypothesis_iterations}"
+            )
+        if int(self.sampled_rotations) != self.sampled_rotations or self.sampled_rotations < 0:
+            raise ValueError(
+                f"sampled_rotations must be an integer >= 0, got {self.sampled_rotations}"
+            )
+        coarsening = self.sampling_coarsening
+        if int(coarsening) != coarsening or coarsening < 1:
+            raise ValueError(
+                f"sampling_coarsening must be an integer >= 1, got {self.sampling_coarsening}"
             )
         if self.search_samples is not None and self.search_samples < 2 * self.bandwidth - 1:
             raise ValueError(

@@ -93,12 +93,13 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         Metres.
     translation_peak : float
         Phase-correlation peak height in [0, 1] at the returned pose (before the
-        refinement), a confidence figure.
+        refinement; after it with ``option.rank_refined``), a confidence figure.
     hypotheses : list of (ndarray (4, 4), float)
         Global search only: for each of the ``option.climbs`` hypotheses that were
-        climbed, its best-scoring iterate (before the refinement) and that score
-        (``option.hypothesis_score`` times the EGI correlation), best first. The
-        returned transformation is the first, refined.
+        climbed, its best-scoring iterate and its score (``option.hypothesis_score``
+        times the EGI correlation), best first; with ``option.rank_refined``, the
+        iterate refined and scored again there. The returned transformation is the
+        first, refined.
     confidence : float
         Global search only: the best score minus that of the best hypothesis ending in a
         distinct rotation (over 10 degrees away); 0 when local.
@@ -222,26 +223,69 @@ def _climb(
         pose.R = so3.project_to_rotation(pose.R @ delta_rotation)
 
 
-def _confidence(ranked: list[tuple[float, _Pose, IterationRecord]]) -> float:
-    """Best score minus the best score of a pose over ``DISTINCT_ANGLE`` away (in
-    rotation) from the best; the best score when every pose is near it."""
-    best_score, best, _ = ranked[0]
-    for score, pose, _ in ranked[1:]:
-        if so3.rotation_angle(pose.R.T @ best.R) > DISTINCT_ANGLE:
+def _confidence(ranked: list[tuple[float, NDArray[np.float64]]]) -> float:
+    """Best score minus the best score of a transformation over ``DISTINCT_ANGLE`` away
+    (in rotation) from the best; the best score when every one is near it. ``ranked``:
+    (score, 4x4 transformation), best first."""
+    best_score, best = ranked[0]
+    for score, other in ranked[1:]:
+        if so3.rotation_angle(other[:3, :3].T @ best[:3, :3]) > DISTINCT_ANGLE:
             return best_score - score
     return best_score
 
 
+def _rescored(
+    stepper: SpectralStepper, moving: MovingCloud, transformation: NDArray[np.float64],
+    init: NDArray[np.float64],
+) -> tuple[float, float]:
+    """``option.hypothesis_score`` of a source-to-target ``transformation`` (4, 4), and
+    its phase-correlation peak: the moving cloud (the source moved by ``init``) turned
+    by its rotation and placed by phase correlation near where it puts the centroid."""
+    pose = transformation @ np.linalg.inv(init)
+    R, centre = pose[:3, :3], pose[:3, :3] @ moving.centroid + pose[:3, 3]
+    e = stepper.evaluate(moving, R, centre - moving.centroid, around=centre)
+    peak = e.translation_peak
+    return stepper.score(moving, R, centre, peak) * 4.0 * np.pi * e.correlation, peak
+
+
 def _hypotheses(
-    stepper: SpectralStepper, moving: MovingCloud, around: NDArray[np.float64] | None = None
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    around: NDArray[np.float64] | None = None,
+    rotations: list[NDArray[np.float64]] | None = None,
 ) -> list[tuple[float, _Climb]]:
     """A climb from each of :meth:`SpectralStepper.hypotheses` (placed near ``around``
-    when given), with its score."""
+    when given; ``rotations`` instead of the correlation's peaks when given), with its
+    score."""
     return [
         (h.score, _Climb(_Pose(moving.centroid, h.rotation, h.centre - moving.centroid),
                          predicted=h.centre))
-        for h in stepper.hypotheses(moving, around=around)
+        for h in stepper.hypotheses(moving, around=around, rotations=rotations)
     ]
+
+
+def _candidates(stepper: SpectralStepper, moving: MovingCloud) -> list[tuple[float, _Climb]]:
+    """A climb from each of the ``option.hypotheses`` best candidate rotations, with its
+    score.
+
+    The candidates are the rotation correlation's peaks and ``option.sampled_rotations``
+    rotations spread over SO(3) (without any, the peaks placed on the full grid). Each
+    is placed by phase correlation on a grid
+    ``option.sampling_coarsening`` times coarser, anywhere in the fixed cloud; the
+    highest peaks are placed again, and scored, on the full grid near there.
+    """
+    option = stepper.option
+    if not option.sampled_rotations:  # the EGI's peaks alone, placed on the full grid
+        return _hypotheses(stepper, moving)
+    coarse = stepper.coarsened(option.sampling_coarsening)
+    rough = coarse.hypotheses(moving)
+    rough += coarse.hypotheses(moving, rotations=so3.uniform_samples(option.sampled_rotations))
+    rough = sorted(rough, key=lambda h: -h.translation_peak)[: option.hypotheses]
+    return _by_score([
+        scored
+        for h in rough
+        for scored in _hypotheses(stepper, moving, around=h.centre, rotations=[h.rotation])
+    ])
 
 
 def _by_score(scored: list[tuple]) -> list[tuple]:
@@ -266,7 +310,7 @@ def _global_search(
     iterate (:meth:`_Climb.best_iterate`).
     """
     option = stepper.option
-    ranked = _hypotheses(stepper, moving)  # best first
+    ranked = _candidates(stepper, moving)  # best first
     focus = False
     if option.egi_focus:
         located = ranked[0][1].predicted
@@ -379,7 +423,9 @@ def registration_spectral(
     correlation over all of SO(3) instead, climbs the best few, and returns the iterate
     of those climbs that scores best. The translation is always found globally.
     The pose is then polished by a point-to-plane ICP with correspondences within
-    0.4 voxel (``option.refinement``; None keeps the law's pose, correspondence-free).
+    0.4 voxel (``option.refinement``; None keeps the law's pose, correspondence-free);
+    with ``option.rank_refined`` the global search polishes each climb's best iterate,
+    scores it again there and returns the best.
 
     Examples
     --------
@@ -408,21 +454,33 @@ def registration_spectral(
     _climb(best.stepper or stepper, moving, best, left, tolerance, init, start)
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
-    if climbs:  # the best iterate of all climbs
-        candidates = _by_score([climb.best_iterate(stepper, moving) for climb in climbs])
-        _, pose, record = candidates[0]
-        result.hypotheses = [(p.matrix() @ init, score) for score, p, _ in candidates]
-        result.confidence = _confidence(candidates)
-    else:
-        pose, record = best.pose, best.history[-1]
-    result.translation_peak = record.translation_peak
-
-    transformation = pose.matrix() @ init
     source_legacy, target_legacy = to_legacy(source), to_legacy(target)  # once, for both
-    if option.refinement == "point_to_plane":
-        transformation = point_to_plane_refinement(
+
+    def refine(transformation: NDArray[np.float64]) -> NDArray[np.float64]:
+        if option.refinement != "point_to_plane":
+            return transformation
+        return point_to_plane_refinement(
             source_legacy, _with_normals(target_legacy, stepper), voxel_size, transformation
         )
+
+    if climbs:  # the best iterate of each climb (refined and scored again: rank_refined)
+        ranked = []
+        for climb in climbs:
+            score, pose, record = climb.best_iterate(stepper, moving)
+            transformation, peak = pose.matrix() @ init, record.translation_peak
+            if option.rank_refined and option.refinement is not None:
+                transformation = refine(transformation)
+                score, peak = _rescored(climb.stepper or stepper, moving, transformation, init)
+            ranked.append((score, transformation, peak))
+        ranked = _by_score(ranked)
+        result.hypotheses = [(M, score) for score, M, _ in ranked]
+        result.confidence = _confidence([(score, M) for score, M, _ in ranked])
+        _, transformation, result.translation_peak = ranked[0]
+        if not option.rank_refined:
+            transformation = refine(transformation)
+    else:
+        transformation = refine(best.pose.matrix() @ init)
+        result.translation_peak = best.history[-1].translation_peak
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = option.max_correspondence_distance or voxel_size

@@ -167,6 +167,7 @@ def test_registry_holds_the_issue_methods():
         "spectral_paper",
         "spectral_global",
         "spectral_global_unrefined",
+        "spectral_global_sampled",
         "icp_point_to_point",
         "icp_point_to_plane",
         "fpfh_ransac",

@@ -151,6 +151,12 @@ register_spectral_variant(
     "spectral_global_unrefined",
     option=SpectralRegistrationOption(rotation_search="global", refinement=None),
 )
+register_spectral_variant(  # candidate default: subsets measured in issue 5's notes
+    "spectral_global_sampled",
+    option=SpectralRegistrationOption(
+        rotation_search="global", sampled_rotations=300, rank_refined=True
+    ),
+)
 
 
 def _down_sampled(cloud: o3d.geometry.PointCloud, voxel_size: float) -> o3d.geometry.PointCloud:
