@@ -70,15 +70,15 @@ class SpectralRegistrationOption:
         candidates. Where part of either cloud is missing (occlusion, a scene) the
         EGI's peaks may all be far from the right rotation while the voxels still match
         there. 0: the EGI's peaks alone.
+    sampling_coarsening : int
+        With ``sampled_rotations``, every candidate rotation is first placed by phase
+        correlation on a grid this many times coarser; the ``hypotheses`` with the
+        highest peaks are placed again, and scored, on the full grid near there.
     rank_refined : bool
         Global search: refine each climb's best iterate (``refinement``) and rank them
         by their score there, rather than refine the best-scoring iterate alone. A few
         degrees off, a sharp phase-correlation peak is low; compared polished, the
         right pose stands out more often.
-    sampling_coarsening : int
-        Every candidate rotation is first placed by phase correlation on a grid this
-        many times coarser; the ``hypotheses`` with the highest peaks are placed again,
-        and scored, on the full grid near there.
     search_samples : int or None
         Samples of each Euler angle in the global grid (``4 * bandwidth`` when None:
         steps of 180 / (2B) degrees in alpha and gamma).

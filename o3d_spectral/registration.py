@@ -139,6 +139,20 @@ class _Pose:
         return out
 
 
+def _pose_score(
+    stepper: SpectralStepper,
+    moving: MovingCloud,
+    rotation: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    peak: float,
+    correlation: float,
+) -> float:
+    """Score of a pose of the moving cloud (turned by ``rotation``, centroid at ``centre``,
+    metres): ``option.hypothesis_score`` there (``peak``: its phase-correlation peak)
+    times its EGI correlation ``4 pi C_r`` (``correlation``: ``C_r``)."""
+    return stepper.score(moving, rotation, centre, peak) * 4.0 * np.pi * correlation
+
+
 @dataclass
 class _Climb:
     """One run of the control law: its pose, smoothing level, history, where the last
@@ -167,8 +181,10 @@ class _Climb:
         pose it started at.
         """
         for record in self.history[len(self.scores) :]:
-            fit = stepper.score(moving, record.rotation, record.centre, record.translation_peak)
-            self.scores.append(fit * 4.0 * np.pi * record.correlation)
+            self.scores.append(_pose_score(
+                stepper, moving, record.rotation, record.centre, record.translation_peak,
+                record.correlation,
+            ))
         k = int(np.argmax(self.scores))
         record = self.history[k]
         pose = _Pose(moving.centroid, record.rotation, record.centre - moving.centroid)
@@ -238,14 +254,14 @@ def _rescored(
     stepper: SpectralStepper, moving: MovingCloud, transformation: NDArray[np.float64],
     init: NDArray[np.float64],
 ) -> tuple[float, float]:
-    """``option.hypothesis_score`` of a source-to-target ``transformation`` (4, 4), and
-    its phase-correlation peak: the moving cloud (the source moved by ``init``) turned
-    by its rotation and placed by phase correlation near where it puts the centroid."""
+    """Score (:func:`_pose_score`) of a source-to-target ``transformation`` (4, 4), and
+    its phase-correlation peak: the moving cloud (the source moved by ``init``) at that
+    pose, its translation searched near there."""
     pose = transformation @ np.linalg.inv(init)
     R, centre = pose[:3, :3], pose[:3, :3] @ moving.centroid + pose[:3, 3]
     e = stepper.evaluate(moving, R, centre - moving.centroid, around=centre)
     peak = e.translation_peak
-    return stepper.score(moving, R, centre, peak) * 4.0 * np.pi * e.correlation, peak
+    return _pose_score(stepper, moving, R, centre, peak, e.correlation), peak
 
 
 def _hypotheses(
@@ -270,9 +286,9 @@ def _candidates(stepper: SpectralStepper, moving: MovingCloud) -> list[tuple[flo
 
     The candidates are the rotation correlation's peaks and ``option.sampled_rotations``
     rotations spread over SO(3) (without any, the peaks placed on the full grid). Each
-    is placed by phase correlation on a grid
-    ``option.sampling_coarsening`` times coarser, anywhere in the fixed cloud; the
-    highest peaks are placed again, and scored, on the full grid near there.
+    is placed by phase correlation on a grid ``option.sampling_coarsening`` times
+    coarser, anywhere in the fixed cloud; the highest peaks are placed again, and
+    scored, on the full grid near there.
     """
     option = stepper.option
     if not option.sampled_rotations:  # the EGI's peaks alone, placed on the full grid
