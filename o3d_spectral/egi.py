@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .harmonics import grid_angles, project, quadrature_weights, sht
 
-__all__ = ["histogram", "coefficients", "smooth", "normalise", "grid_points"]
+__all__ = ["histogram", "coefficients", "smooth", "normalise", "grid_points", "facing"]
 
 
 def _unit(normals: ArrayLike) -> NDArray[np.float64]:
@@ -147,3 +147,29 @@ def grid_points(bandwidth: int) -> NDArray[np.float64]:
     theta, phi = grid_angles(bandwidth)
     t, p = np.meshgrid(theta, phi, indexing="ij")
     return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+
+
+def facing(direction: ArrayLike):
+    """The weight with which a sensor in ``direction`` samples a surface of normal ``n``:
+    the cosine of incidence ``max(0, n . d)`` (0 for surfaces facing away).
+
+    Parameters
+    ----------
+    direction : array_like, shape (3,)
+        From the surface towards the sensor (any length).
+
+    Returns
+    -------
+    callable
+        Unit vectors (..., 3) to weights (...).
+    """
+    d = np.asarray(direction, dtype=np.float64).reshape(3)
+    norm = np.linalg.norm(d)
+    if not (np.isfinite(norm) and norm > 0):
+        raise ValueError(f"direction must be a finite non-zero vector, got {direction}")
+    d = d / norm
+
+    def weight(normals: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.maximum(np.asarray(normals) @ d, 0.0)
+
+    return weight

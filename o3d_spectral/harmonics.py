@@ -35,6 +35,7 @@ __all__ = [
     "isht",
     "project",
     "degree_norms",
+    "resize",
 ]
 
 
@@ -247,3 +248,24 @@ def project(
 def degree_norms(coefficients: ArrayLike) -> NDArray[np.float64]:
     """L2 norm of each degree's coefficient vector, shape (B,)."""
     return np.linalg.norm(np.asarray(coefficients, dtype=np.float64), axis=-1)
+
+
+def resize(coefficients: ArrayLike, bandwidth: int) -> NDArray[np.float64]:
+    """The same expansion at another bandwidth: degrees ``l >= bandwidth`` dropped, new
+    degrees zero.
+
+    Parameters
+    ----------
+    coefficients : array_like, shape (B, 2B - 1)
+    bandwidth : int
+
+    Returns
+    -------
+    ndarray, shape (bandwidth, 2 bandwidth - 1)
+    """
+    F = np.asarray(coefficients, dtype=np.float64)
+    B, out_B = F.shape[0], _check_bandwidth(bandwidth)
+    out = np.zeros((out_B, 2 * out_B - 1))
+    keep = min(B, out_B)
+    out[:keep, out_B - keep : out_B + keep - 1] = F[:keep, B - keep : B + keep - 1]
+    return out

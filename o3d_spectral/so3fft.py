@@ -13,10 +13,15 @@ so one 2D inverse FFT over ``(alpha, gamma)`` per ``beta`` gives the whole grid
 (``../shared/METHOD.md``, section 7; Kostelec & Rockmore's SOFT does the same with
 complex Wigner-d). Zero-padding the FFT refines the ``alpha, gamma`` step below
 ``360 / (2B - 1)`` degrees; more ``beta`` samples refine ``beta``.
+
+Against a single view, :func:`visible_correlation_grid` correlates what the sensor would
+see of the turned moving EGI instead, normalised over that visible part: three such
+transforms.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -24,9 +29,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
+from .egi import grid_points
+from .harmonics import isht, resize, sht
 from .wigner import _quarter_turn, wigner_z
 
-__all__ = ["CorrelationGrid", "correlation_grid", "peaks"]
+__all__ = ["CorrelationGrid", "correlation_grid", "visible_correlation_grid", "peaks"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +123,71 @@ def correlation_grid(
     values = np.fft.ifft2(spectrum, axes=(1, 2)).real * (n_alpha**2) / (4.0 * np.pi)
     angles = 2.0 * np.pi * np.arange(n_alpha) / n_alpha
     return CorrelationGrid(values, angles, np.pi * (np.arange(n_beta) + 0.5) / n_beta, angles)
+
+
+def visible_correlation_grid(
+    F: ArrayLike,
+    G: ArrayLike,
+    weight: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    *,
+    n_alpha: int | None = None,
+    n_beta: int | None = None,
+) -> CorrelationGrid:
+    """The rotation correlation of a single view: ``g`` against ``w f_R``, normalised.
+
+    A sensor samples a surface in proportion to a weight ``w(n) >= 0`` of its normal (a
+    depth camera in direction ``d``: the cosine of incidence ``max(0, n . d)``,
+    :func:`o3d_spectral.egi.facing`), so the fixed EGI ``g`` of one view is expected to
+    be ``w f_R`` (``f_R(n) = f(R^T n)``: the moving EGI turned by ``R``), not ``f_R``.
+    The grid holds the cosine similarity of the two, both without degree 0, over
+    ``4 pi`` (the unit of :func:`correlation_grid` for unit-norm coefficients)::
+
+        C_v(R) = int g' w f_R / (4 pi ||g'|| ||(w f_R)'||),
+        ||(w f_R)'||^2 = int w^2 f_R^2 - (int w f_R)^2 / (4 pi)
+
+    (``'``: degree 0 removed). Each integral is a rotation correlation of two known
+    expansions (``g' w`` with ``f``, ``w^2`` with ``f^2``, ``w`` with ``f``), so three
+    SO(3) transforms give the whole grid; the products are formed on the grid of
+    bandwidth ``2B``, where ``f^2`` is exact. Normalising by the visible part is what
+    keeps a rotation that turns the moving cloud's largest faces towards the sensor from
+    winning whatever the view holds. ``C_v`` is the correlation the local law climbs
+    against a single view (the moving cloud culled and weighted by the cosine of
+    incidence at each pose, :meth:`o3d_spectral.SpectralStepper.evaluate`), up to the
+    truncation of ``w f_R`` to degrees below ``B`` and the sensor's perspective.
+
+    Parameters
+    ----------
+    F, G : array_like, shape (B, 2B - 1)
+        Coefficients of the moving and the fixed EGI; ``F`` with its degree 0 (the
+        mass), any scale.
+    weight : callable
+        ``w``: unit vectors (..., 3) to non-negative weights (...).
+    n_alpha, n_beta : int, optional
+        As for :func:`correlation_grid`.
+
+    Returns
+    -------
+    CorrelationGrid
+        ``values`` in ``[-1/4pi, 1/4pi]``; 0 where nothing of the moving EGI is seen.
+    """
+    F, G = np.asarray(F, dtype=np.float64), np.array(G, dtype=np.float64)
+    B, fine = F.shape[0], 2 * F.shape[0]
+    G[0] = 0.0
+    w = np.asarray(weight(grid_points(fine)), dtype=np.float64)
+    f, g = isht(resize(F, fine)), isht(resize(G, fine))
+
+    def correlate(moving: NDArray[np.float64], fixed_samples: NDArray[np.float64]):
+        fixed = resize(sht(fixed_samples, fine), B)
+        return correlation_grid(moving, fixed, n_alpha=n_alpha, n_beta=n_beta)
+
+    cross = correlate(F, g * w)  # int g' w f_R / 4 pi
+    energy = correlate(resize(sht(f * f, fine), B), w * w).values  # int w^2 f_R^2 / 4 pi
+    mean = correlate(F, w).values  # int w f_R / 4 pi
+    variance = 4.0 * np.pi * (energy - mean**2)  # ||(w f_R)'||^2
+    floor = 1e-12 * max(float(variance.max()), 1e-300)
+    norm = np.linalg.norm(G) * np.sqrt(np.maximum(variance, floor))
+    values = np.where(variance > floor, cross.values / np.maximum(norm, 1e-300), 0.0)
+    return CorrelationGrid(values, cross.alphas, cross.betas, cross.gammas)
 
 
 def peaks(
