@@ -57,6 +57,13 @@ class SpectralRegistrationOption:
         correlation's peaks to the hypotheses; each climbed hypothesis then matches only
         the fixed cloud's normals near its own points. No effect when the fixed cloud is
         about the moving cloud's size.
+    search_visibility : bool
+        Global search against a single view (``target_viewpoint``): correlate the fixed
+        EGI with the moving one as the sensor would see it at each rotation (weighted by
+        the cosine of incidence, normalised over its visible part,
+        :meth:`o3d_spectral.SpectralStepper.rotation_grid`) rather than with the whole
+        moving EGI, where rotations that turn the moving cloud's largest faces towards
+        the sensor score high whatever the view holds.
     hypothesis_score : {"translation_peak", "fitness"}
         How hypotheses are ranked: the height of their phase-correlation peak (how well
         the rotated moving grid matches the fixed one under any shift; spectral, no
@@ -70,10 +77,16 @@ class SpectralRegistrationOption:
         candidates. Where part of either cloud is missing (occlusion, a scene) the
         EGI's peaks may all be far from the right rotation while the voxels still match
         there. 0: the EGI's peaks alone.
-    sampling_coarsening : int
-        With ``sampled_rotations``, every candidate rotation is first placed by phase
-        correlation on a grid this many times coarser; the ``hypotheses`` with the
-        highest peaks are placed again, and scored, on the full grid near there.
+    placement_coarsening : int
+        Global search: every candidate rotation (the correlation's peaks and the
+        ``sampled_rotations``) is first placed by phase correlation on a grid this many
+        times coarser (``placement_coarsening**3`` times fewer voxels); the
+        ``placed_again`` with the highest peaks are placed again, and scored, on the
+        full grid near there. 1: every candidate placed on the full grid.
+    placed_again : int
+        Candidates placed again on the full grid (at least ``climbs``); with
+        ``placement_coarsening=1`` and no ``sampled_rotations``, every peak is placed
+        once, on the full grid, and this is not used.
     rank_refined : bool
         Global search: refine each climb's best iterate (``refinement``) and rank them
         by their score there, rather than refine the best-scoring iterate alone. A few
@@ -154,8 +167,10 @@ class SpectralRegistrationOption:
     hypothesis_iterations: int = 12
     hypothesis_score: str = "translation_peak"
     egi_focus: bool = True
+    search_visibility: bool = True
     sampled_rotations: int = 0
-    sampling_coarsening: int = 2
+    placement_coarsening: int = 2
+    placed_again: int = 8
     rank_refined: bool = False
     search_samples: int | None = None
     max_rotation_step: float = 0.35
@@ -215,10 +230,15 @@ class SpectralRegistrationOption:
             raise ValueError(
                 f"sampled_rotations must be an integer >= 0, got {self.sampled_rotations}"
             )
-        coarsening = self.sampling_coarsening
+        coarsening = self.placement_coarsening
         if int(coarsening) != coarsening or coarsening < 1:
             raise ValueError(
-                f"sampling_coarsening must be an integer >= 1, got {self.sampling_coarsening}"
+                f"placement_coarsening must be an integer >= 1, got {self.placement_coarsening}"
+            )
+        if int(self.placed_again) != self.placed_again or self.placed_again < self.climbs:
+            raise ValueError(
+                f"placed_again must be an integer >= climbs ({self.climbs}), got "
+                f"{self.placed_again}"
             )
         if self.search_samples is not None and self.search_samples < 2 * self.bandwidth - 1:
             raise ValueError(

@@ -31,12 +31,12 @@ from scipy.spatial import cKDTree
 from . import so3
 from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
 from .egi import coefficients as egi_coefficients
-from .egi import normalise, smooth
+from .egi import facing, normalise, smooth
 from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .options import SpectralRegistrationOption
 from .rotation import RotationGradient, curvature_scale, gradient, rotation_step
-from .so3fft import correlation_grid, peaks
+from .so3fft import CorrelationGrid, correlation_grid, peaks, visible_correlation_grid
 from .translation import cross_power_peak
 
 __all__ = ["MovingCloud", "Evaluation", "Hypothesis", "Step", "SpectralStepper", "FOCUS_SHARE"]
@@ -222,6 +222,7 @@ class SpectralStepper:
         points = prepared.points
         self._set_grid(points, self.voxel_size)
         self._target_normals, self._target_normal_points = prepared.normals, prepared.normal_points
+        self._normals_centre = prepared.normal_points.mean(axis=0)
         raw = self._egi(prepared.normals)
         self.target_coefficients = self._smoothed_levels(raw)
         self.target_points = points
@@ -288,6 +289,7 @@ class SpectralStepper:
         out = copy.copy(self)
         raw = self._egi(self._target_normals[kept])
         out.target_coefficients = self._smoothed_levels(raw)
+        out._normals_centre = self._target_normal_points[kept].mean(axis=0)
         return out
 
     def visible_points(
@@ -548,8 +550,7 @@ class SpectralStepper:
     ) -> list[Hypothesis]:
         """The ``option.hypotheses`` highest peaks of ``C_r`` over SO(3), placed and scored.
 
-        ``C_r`` is evaluated on a grid of ``option.search_samples`` Euler angles by an SO(3)
-        Fourier transform (:func:`o3d_spectral.so3fft.correlation_grid`); each peak's
+        ``C_r`` is evaluated on a grid of Euler angles (:meth:`rotation_grid`); each peak's
         rotation is located by phase correlation (:meth:`locate`, near ``around`` when
         given) and scored by ``option.hypothesis_score``.
 
@@ -569,15 +570,44 @@ class SpectralStepper:
             Best score first.
         """
         if rotations is None:
-            F, G = self.rotation_spectra(moving, level)
-            samples = self.option.search_samples or 4 * self.option.bandwidth
-            grid = correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+            grid = self.rotation_grid(moving, level)
             rotations = [R for R, _ in peaks(grid, count=self.option.hypotheses)]
         found = []
         for R in np.asarray(rotations, dtype=np.float64).reshape(-1, 3, 3):
             centre, peak, cost = self._locate(moving, R, around)
             found.append(Hypothesis(R, centre, peak, cost, self.score(moving, R, centre, peak)))
         return sorted(found, key=lambda h: -h.score)
+
+    def rotation_grid(self, moving: MovingCloud, level: int = -1) -> CorrelationGrid:
+        """The rotation correlation over the whole of SO(3), on ``option.search_samples``
+        samples of each ZYZ Euler angle, by SO(3) Fourier transforms.
+
+        Against a single view (:attr:`viewpoint` known) with ``option.search_visibility``,
+        the moving EGI as the sensor would see it turned: weighted by the cosine of
+        incidence from where the sensor is seen from the fixed cloud's normals (their
+        centroid), and normalised over that visible part
+        (:func:`o3d_spectral.so3fft.visible_correlation_grid`), the correlation the law
+        climbs there. Otherwise the plain ``C_r`` of the whole EGIs
+        (:func:`o3d_spectral.so3fft.correlation_grid`).
+
+        Parameters
+        ----------
+        moving : MovingCloud
+        level : int
+            EGI smoothing level.
+
+        Returns
+        -------
+        CorrelationGrid
+        """
+        samples = self.option.search_samples or 4 * self.option.bandwidth
+        G = self.target_coefficients[level]
+        if self.viewpoint is None or not self.option.search_visibility:
+            F = self._smooth(moving.coefficients, level)
+            return correlation_grid(F, G, n_alpha=samples, n_beta=samples)
+        F = smooth(moving.coefficients, self.option.egi_smoothing[level])
+        sensor = facing(self.viewpoint - self._normals_centre)
+        return visible_correlation_grid(F, G, sensor, n_alpha=samples, n_beta=samples)
 
     def score(
         self, moving: MovingCloud, rotation: ArrayLike, centre: ArrayLike, peak: float
