@@ -280,23 +280,27 @@ def _hypotheses(
     ]
 
 
-def _candidates(stepper: SpectralStepper, moving: MovingCloud) -> list[tuple[float, _Climb]]:
-    """A climb from each of the ``option.hypotheses`` best candidate rotations, with its
-    score.
+def _candidates(
+    stepper: SpectralStepper, moving: MovingCloud, around: NDArray[np.float64] | None = None
+) -> list[tuple[float, _Climb]]:
+    """A climb from each of the best candidate rotations, with its score, best first.
 
-    The candidates are the rotation correlation's peaks and ``option.sampled_rotations``
-    rotations spread over SO(3) (without any, the peaks placed on the full grid). Each
-    is placed by phase correlation on a grid ``option.sampling_coarsening`` times
-    coarser, anywhere in the fixed cloud; the highest peaks are placed again, and
-    scored, on the full grid near there.
+    The candidates are the rotation correlation's ``option.hypotheses`` peaks and
+    ``option.sampled_rotations`` rotations spread over SO(3). Each is placed by phase
+    correlation on a grid ``option.placement_coarsening`` times coarser (near
+    ``around``, metres, when given; anywhere in the fixed cloud otherwise); the
+    ``option.placed_again`` with the highest peaks are placed again, and scored, on the
+    full grid near there.
     """
     option = stepper.option
-    if not option.sampled_rotations:  # the EGI's peaks alone, placed on the full grid
-        return _hypotheses(stepper, moving)
-    coarse = stepper.coarsened(option.sampling_coarsening)
-    rough = coarse.hypotheses(moving)
-    rough += coarse.hypotheses(moving, rotations=so3.uniform_samples(option.sampled_rotations))
-    rough = sorted(rough, key=lambda h: -h.translation_peak)[: option.hypotheses]
+    if option.placement_coarsening == 1 and not option.sampled_rotations:
+        return _hypotheses(stepper, moving, around=around)
+    coarse = stepper.coarsened(option.placement_coarsening)
+    rough = coarse.hypotheses(moving, around=around)
+    if option.sampled_rotations:
+        samples = so3.uniform_samples(option.sampled_rotations)
+        rough += coarse.hypotheses(moving, around=around, rotations=samples)
+    rough = sorted(rough, key=lambda h: -h.translation_peak)[: option.placed_again]
     return _by_score([
         scored
         for h in rough
@@ -317,10 +321,11 @@ def _global_search(
 ) -> list[tuple[float, _Climb]]:
     """Hypotheses from the whole SO(3), climbed a little, best first.
 
-    Every peak of the rotation correlation is located by phase correlation and scored.
-    With ``option.egi_focus``, in a fixed cloud larger than the moving one, the fixed
-    EGI is then focused on a ball about where the best one put the moving cloud, that
-    correlation's peaks are added, and each climbed hypothesis matches the normals near
+    Every candidate rotation is located by phase correlation and scored
+    (:func:`_candidates`). With ``option.egi_focus``, in a fixed cloud larger than the
+    moving one, the fixed EGI is then focused on a ball about where the best one put the
+    moving cloud, that correlation's candidates are added, and each climbed hypothesis
+    matches the normals near
     its own points (:meth:`SpectralStepper.focused`). The ``option.climbs`` best are
     climbed ``option.hypothesis_iterations`` times and ranked again, by their best
     iterate (:meth:`_Climb.best_iterate`).
@@ -333,7 +338,7 @@ def _global_search(
         ball = stepper.focused(located[None, :], moving.radius + FOCUS_MARGIN * stepper.voxel_size)
         focus = ball is not stepper
         if focus:
-            ranked = _by_score(ranked + _hypotheses(ball, moving, around=located))
+            ranked = _by_score(ranked + _candidates(ball, moving, around=located))
     climbs = [climb for _, climb in ranked[: option.climbs]]
     budget = min(option.hypothesis_iterations, criteria.max_iteration)
     scored = []

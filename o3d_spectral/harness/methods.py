@@ -151,10 +151,16 @@ register_spectral_variant(
     "spectral_global_unrefined",
     option=SpectralRegistrationOption(rotation_search="global", refinement=None),
 )
-register_spectral_variant(  # candidate default: subsets measured in issue 5's notes
+register_spectral_variant(  # measured in issue 5's notes; not the default (twice the time)
     "spectral_global_sampled",
     option=SpectralRegistrationOption(
-        rotation_search="global", sampled_rotations=300, rank_refined=True
+        rotation_search="global", sampled_rotations=300, placed_again=32, rank_refined=True
+    ),
+)
+register_spectral_variant(  # the global search before its visibility-weighted correlation
+    "spectral_global_whole_egi",
+    option=SpectralRegistrationOption(
+        rotation_search="global", search_visibility=False, placement_coarsening=1
     ),
 )
 
