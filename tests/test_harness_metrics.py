@@ -6,7 +6,8 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.harness import methods
+from o3d_spectral import data, so3
+from o3d_spectral.harness import methods, metrics
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
     convergence_curves,
@@ -14,7 +15,9 @@ from o3d_spectral.harness.metrics import (
     registration_fit,
 )
 from o3d_spectral.harness.runner import task_seed
-from o3d_spectral.scenes import Instance
+from o3d_spectral.scenes import Instance, make_instance
+from o3d_spectral.suite import instance_rng
+from o3d_spectral.symmetry import surface_moments
 
 CENTER = np.array([0.3, -0.2, 0.8])  # the object sits far from the source frame's origin
 
@@ -209,3 +212,38 @@ def test_spectral_variant_reports_its_trajectory(monkeypatch):
     assert set(info) == set(methods.INFO_KEYS)
     assert info["trajectory"].shape == (info["iterations"], 4, 4)
     assert_allclose(info["trajectory"][0], np.eye(4))
+
+
+def _turned(instance, axis_index: int, degrees: float) -> np.ndarray:
+    """The ground truth followed by a turn about one of the model's principal axes
+    through its surface centroid (source frame)."""
+    center, axes = surface_moments(data.load_model(instance.object))
+    M = instance.source_from_model
+    axis, point = M[:3, :3] @ axes[:, axis_index], M[:3, :3] @ center + M[:3, 3]
+    turn = np.eye(4)
+    turn[:3, :3] = so3.exp(np.deg2rad(degrees) * axis)
+    turn[:3, 3] = point - turn[:3, :3] @ point
+    return instance.T_gt @ turn
+
+
+def test_a_turn_the_view_cannot_see_is_indistinguishable():
+    """Occluded instance 6 (seed 0): a mug whose handle is hidden. Turned 10 degrees
+    about its body's axis it fits the view as well as the truth; turned as far about a
+    perpendicular axis, or 60 degrees about its own, it does not."""
+    instance = make_instance("occluded", "mug", rng=instance_rng(0, 6))
+    assert metrics.indistinguishable(instance.T_gt, instance)
+    assert metrics.indistinguishable(_turned(instance, 1, 10.0), instance)
+    assert not metrics.indistinguishable(_turned(instance, 1, 60.0), instance)
+    assert not metrics.indistinguishable(_turned(instance, 0, 10.0), instance)
+    assert not metrics.indistinguishable(_turned(instance, 2, 10.0), instance)
+
+
+def test_observation_fit_of_the_truth_on_a_full_model():
+    """C-1: every observed point lies on the posed mesh, and nearly every model point has
+    an observed point nearby (3000 points on the drill are a few millimetres apart, as
+    far as the tolerance); a half turn loses most of both."""
+    instance = make_instance("full", "power_drill", rng=instance_rng(0, 0))
+    truth = metrics.observation_fit(instance.T_gt, instance)
+    assert truth.explained == len(instance.target.points) and truth.matched > 0.95
+    flipped = metrics.observation_fit(_turned(instance, 0, 180.0), instance)
+    assert flipped.explained < 0.5 * truth.explained and flipped.matched < 0.5

@@ -132,6 +132,7 @@ def summary_table(frame: pd.DataFrame) -> Table:
                 continue
             wins = runs[runs["success"].astype(bool)]
             failed = runs["error"].notna().sum() if "error" in runs else 0
+            open_view = _flagged(runs).sum()
             rows.append(
                 {
                     "suite": _suite_label(suite, condition),
@@ -143,6 +144,7 @@ def summary_table(frame: pd.DataFrame) -> Table:
                     "median time (s)": runs["time_s"].median(),
                     "p90 time (s)": runs["time_s"].quantile(0.9),
                     "failed": failed,
+                    "indistinguishable": open_view,
                 }
             )
     result = pandas.DataFrame(rows)
@@ -156,13 +158,59 @@ def summary_table(frame: pd.DataFrame) -> Table:
         "median time (s)": "f3",
         "p90 time (s)": "f3",
         "failed": "int",
+        "indistinguishable": "int",
     }
     caption = (
         "Success (symmetry-aware rotation and translation errors within the thresholds), "
         "median errors over the successful runs only, wall time per registration (one "
-        "thread); `failed`: runs that raised an error (counted as failures)."
+        "thread); `failed`: runs that raised an error (counted as failures); "
+        "`indistinguishable`: failures whose pose fits the observed points as well as the "
+        "ground truth does (`o3d_spectral.harness.metrics.indistinguishable`)."
     )
     return Table("summary", caption, result, formats)
+
+
+def _flagged(runs: pd.DataFrame) -> pd.Series:
+    """Per run: a failure whose pose fits the observation as well as the truth."""
+    if "indistinguishable" not in runs:
+        return require("pandas").Series(False, index=runs.index)
+    return runs["indistinguishable"].map(lambda v: v is True or v == 1.0).astype(bool)
+
+
+def ambiguity_table(frame: pd.DataFrame) -> Table:
+    """Per suite: instances on which some method returned a wrong pose that fits the
+    observed points as well as the ground truth, and the success rate that leaves to a
+    method that ranks poses by how well they fit the observation."""
+    pandas = require("pandas")
+    rows = []
+    for suite, condition in _suite_order(frame):
+        runs = frame[frame["suite"] == suite]
+        instances = runs["index"].nunique()
+        open_views = runs[_flagged(runs)]["index"].nunique()
+        rows.append(
+            {
+                "suite": _suite_label(suite, condition),
+                "instances": instances,
+                "open views": open_views,
+                "methods flagging": runs[_flagged(runs)]["method"].nunique(),
+                "best success (%)": runs.groupby("method")["success"].mean().max(),
+                "bound (%)": 1.0 - open_views / instances,
+            }
+        )
+    result = pandas.DataFrame(rows)
+    formats = {"suite": "text", "instances": "int", "open views": "int"}
+    formats |= {"methods flagging": "int", "best success (%)": "pct", "bound (%)": "pct"}
+    caption = (
+        "`open views`: instances on which at least one method returned a wrong pose "
+        "(outside the success thresholds) that explains at least 99% as many observed "
+        "points as the ground truth, within 5 mm of the model's surface, and has at "
+        "least the truth's share of its sensor-facing points, less 1%, within 5 mm of an "
+        "observed point. What was seen cannot tell these poses from the truth, so "
+        "`bound` = 1 - open views / instances is as much as a method that scores poses "
+        "by how well they fit the observed points can be sure of; it is an upper bound "
+        "found by these methods' mistakes, not the exact limit."
+    )
+    return Table("ambiguity", caption, result, formats)
 
 
 def comparison_table(summary: Table, spectral: list[str]) -> Table:
@@ -474,6 +522,7 @@ def _markdown_report(
         "table1": "Table 1 (paper layout)",
         "summary": "Success rate and time",
         "comparison": "Where spectral loses (automatic comparison)",
+        "ambiguity": "What the views leave open",
     }
     for table in tables:
         parts += [f"\n## {titles[table.name]}\n", f"{table.caption}\n", "\n" + to_markdown(table)]
@@ -514,6 +563,8 @@ def make_report(
     tables = [paper_table(frame), summary]
     if spectral:
         tables.append(comparison_table(summary, spectral))
+    if "indistinguishable" in frame:
+        tables.append(ambiguity_table(frame))
     written = [path for table in tables for path in write_table(table, out)]
     figures: dict[str, Path] = {}
     plots: list[tuple[str, Callable[[Path], Path], str]] = [

@@ -39,6 +39,7 @@ from o3d_spectral.harness.methods import get_method, method_names
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
     convergence_curves,
+    indistinguishable,
     instance_metrics,
     registration_fit,
 )
@@ -127,6 +128,10 @@ def _run_task(task: _Task) -> dict:
         row["success"] = False
         return row
     row |= instance_metrics(transformation, instance, criteria=task.criteria)
+    # A wrong pose: can the observation rule it out? (None for a success.)
+    row["indistinguishable"] = (
+        None if row["success"] else indistinguishable(transformation, instance)
+    )
     row["fitness"], row["inlier_rmse"] = registration_fit(
         transformation, instance, distance=task.voxel_size
     )
