@@ -308,6 +308,16 @@ def _candidates(
     ])
 
 
+def _places(ranked: list[tuple[float, _Climb]], separation: float) -> list[NDArray[np.float64]]:
+    """Where the ranked climbs put the moving cloud's centroid (metres), best first,
+    each over ``separation`` (metres) from the ones before."""
+    places: list[NDArray[np.float64]] = []
+    for _, climb in ranked:
+        if all(np.linalg.norm(climb.predicted - p) > separation for p in places):
+            places.append(climb.predicted)
+    return places
+
+
 def _by_score(scored: list[tuple]) -> list[tuple]:
     """``scored`` (tuples, score first) sorted best first (stable)."""
     return sorted(scored, key=lambda item: -item[0])
@@ -334,11 +344,14 @@ def _global_search(
     ranked = _candidates(stepper, moving)  # best first
     focus = False
     if option.egi_focus:
-        located = ranked[0][1].predicted
-        ball = stepper.focused(located[None, :], moving.radius + FOCUS_MARGIN * stepper.voxel_size)
-        focus = ball is not stepper
-        if focus:
-            ranked = _by_score(ranked + _candidates(ball, moving, around=located))
+        radius = moving.radius + FOCUS_MARGIN * stepper.voxel_size
+        for located in _places(ranked, moving.radius)[: option.focus_places]:
+            ball = stepper.focused(located[None, :], radius)
+            if ball is stepper:  # the fixed cloud is about the moving one's size
+                break
+            focus = True
+            ranked = ranked + _candidates(ball, moving, around=located)
+        ranked = _by_score(ranked)
     climbs = [climb for _, climb in ranked[: option.climbs]]
     budget = min(option.hypothesis_iterations, criteria.max_iteration)
     scored = []
