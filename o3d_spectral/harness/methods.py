@@ -154,13 +154,17 @@ register_spectral_variant(
 register_spectral_variant(  # measured in issue 5's notes; not the default (twice the time)
     "spectral_global_sampled",
     option=SpectralRegistrationOption(
-        rotation_search="global", sampled_rotations=300, placed_again=32, rank_refined=True
+        rotation_search="global",
+        sampled_rotations=300,
+        placement_coarsening=2,
+        placed_again=32,
+        rank_refined=True,
     ),
 )
-register_spectral_variant(  # the global search before its visibility-weighted correlation
+register_spectral_variant(  # the global search before issue 5's eighth session
     "spectral_global_whole_egi",
     option=SpectralRegistrationOption(
-        rotation_search="global", search_visibility=False, placement_coarsening=1
+        rotation_search="global", search_visibility=False, focus_places=1
     ),
 )
 
