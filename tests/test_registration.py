@@ -290,22 +290,26 @@ def test_global_search_registers_an_object_in_a_cluttered_scene(name):
     assert symmetric_translation_error(result.transformation, T, symmetry, center=center) < 0.01
 
 
+def _global_errors(instance, **options) -> tuple[float, float]:
+    """Symmetry-aware rotation (deg) and translation (m, at the centroid) errors of the
+    global search with ``options`` on a suite instance."""
+    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global", **options)
+    result = o3d_spectral.registration_spectral(
+        instance.source, instance.target, VOXEL, option=option
+    )
+    T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
+    return (
+        symmetric_rotation_error(result.transformation, T, symmetry),
+        symmetric_translation_error(result.transformation, T, symmetry, center=center),
+    )
+
+
 @pytest.mark.slow
 def test_focused_egi_finds_what_the_whole_scene_egi_misses():
     """Instance 2 of the cluttered suite (seed 0): the whole scene's EGI alone points the
     cracker box the wrong way; focused on where it was located, it registers it."""
     instance = make_instance("cluttered", "cracker_box", rng=instance_rng(0, 2))
-    T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
-    errors = {}
-    for focus in (True, False):
-        option = o3d_spectral.SpectralRegistrationOption(rotation_search="global", egi_focus=focus)
-        result = o3d_spectral.registration_spectral(
-            instance.source, instance.target, VOXEL, option=option
-        )
-        errors[focus] = (
-            symmetric_rotation_error(result.transformation, T, symmetry),
-            symmetric_translation_error(result.transformation, T, symmetry, center=center),
-        )
+    errors = {focus: _global_errors(instance, egi_focus=focus) for focus in (True, False)}
     assert errors[True][0] < 5.0 and errors[True][1] < 0.01
     assert errors[False][0] > 5.0
 
@@ -334,19 +338,10 @@ def test_sampled_rotations_find_what_the_egi_peaks_miss():
     None of the EGI correlation's peaks is near its rotation; rotations spread over SO(3)
     and ranked by their phase-correlation peak find it."""
     instance = make_instance("occluded", "banana", rng=instance_rng(0, 24))
-    T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
-    errors = {}
-    for sampled in (0, 300):
-        option = o3d_spectral.SpectralRegistrationOption(
-            rotation_search="global", sampled_rotations=sampled, rank_refined=sampled > 0
-        )
-        result = o3d_spectral.registration_spectral(
-            instance.source, instance.target, VOXEL, option=option
-        )
-        errors[sampled] = (
-            symmetric_rotation_error(result.transformation, T, symmetry),
-            symmetric_translation_error(result.transformation, T, symmetry, center=center),
-        )
+    errors = {
+        sampled: _global_errors(instance, sampled_rotations=sampled, rank_refined=sampled > 0)
+        for sampled in (0, 300)
+    }
     assert errors[300][0] < 5.0 and errors[300][1] < 0.01
     assert errors[0][0] > 5.0
 
@@ -357,18 +352,6 @@ def test_focus_on_several_places_finds_an_object_the_first_place_misses():
     objects: the best whole-scene hypotheses put it elsewhere, so the EGI focused on that
     place alone misleads; focused on the three best distinct places, it is registered."""
     instance = make_instance("cluttered", "tomato_soup_can", rng=instance_rng(0, 47))
-    T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
-    errors = {}
-    for places in (1, 3):
-        option = o3d_spectral.SpectralRegistrationOption(
-            rotation_search="global", focus_places=places
-        )
-        result = o3d_spectral.registration_spectral(
-            instance.source, instance.target, VOXEL, option=option
-        )
-        errors[places] = (
-            symmetric_rotation_error(result.transformation, T, symmetry),
-            symmetric_translation_error(result.transformation, T, symmetry, center=center),
-        )
+    errors = {places: _global_errors(instance, focus_places=places) for places in (1, 3)}
     assert errors[3][0] < 5.0 and errors[3][1] < 0.01
     assert errors[1][1] > 0.05  # another place, not a near miss
