@@ -133,8 +133,10 @@ class SpectralRegistrationOption:
         point-to-plane ICP on the full clouds with correspondences up to
         ``0.4 * voxel_size``, the refinement of Open3D's global-registration tutorial
         (and of this project's FPFH baselines); its correspondences reach 0.4 voxel, so
-        it polishes the law's pose rather than replacing it. None: the spectral law's
-        pose itself, with no correspondences at all (the paper).
+        it polishes the law's pose rather than replacing it. Where the polished pose
+        keeps at most half of the law's inliers at 0.4 voxel (the ICP slid off the
+        surface from a wrong pose), the law's pose is returned. None: the spectral
+        law's pose itself, with no correspondences at all (the paper).
     refinement_wide_distance : float or None
         With ``refinement``: the ICP is also run after a first pass with
         correspondences up to this many voxels (a wider basin: a mug a few degrees off

@@ -398,20 +398,28 @@ def _widened_refinement(
 ) -> NDArray[np.float64]:
     """:func:`point_to_plane_refinement` from ``init``, and, with ``wide`` (voxels), the
     same after a first ICP with correspondences up to ``wide`` voxels; the one that fits
-    better (Open3D's fitness at the refinement's 0.4 voxel, the first of equals)."""
-    tight = point_to_plane_refinement(source, target, voxel_size, init)
-    if wide is None:
-        return tight
-    widened = point_to_plane_refinement(
-        source, target, voxel_size, point_to_plane_icp(source, target, wide * voxel_size, init)
-    )
+    better (Open3D's fitness at the refinement's 0.4 voxel, the first of equals).
+
+    ``init`` itself when the kept result has at most half as many inliers at 0.4 voxel
+    as ``init``: from a wrong pose with few correspondences on a thin or flat part, the
+    ICP's normal equations are nearly singular and it can leave the surface altogether
+    (a scissors view sent 90 m away), which no refinement should do.
+    """
 
     def fitness(transformation: NDArray[np.float64]) -> float:
         return o3d.pipelines.registration.evaluate_registration(
             source, target, REFINEMENT_DISTANCE * voxel_size, transformation
         ).fitness
 
-    return widened if fitness(widened) > fitness(tight) else tight
+    refined = point_to_plane_refinement(source, target, voxel_size, init)
+    kept = fitness(refined)
+    if wide is not None:
+        widened = point_to_plane_refinement(
+            source, target, voxel_size, point_to_plane_icp(source, target, wide * voxel_size, init)
+        )
+        if (fit := fitness(widened)) > kept:
+            refined, kept = widened, fit
+    return init if kept <= 0.5 * fitness(init) else refined
 
 
 def _with_normals(
