@@ -17,6 +17,8 @@ normalised (:func:`normalise`) so that one gain fits every cloud.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -149,7 +151,7 @@ def grid_points(bandwidth: int) -> NDArray[np.float64]:
     return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
 
 
-def facing(direction: ArrayLike):
+def facing(direction: ArrayLike) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """The weight with which a sensor in ``direction`` samples a surface of normal ``n``:
     the cosine of incidence ``max(0, n . d)`` (0 for surfaces facing away).
 

@@ -333,12 +333,12 @@ def _global_search(
 
     Every candidate rotation is located by phase correlation and scored
     (:func:`_candidates`). With ``option.egi_focus``, in a fixed cloud larger than the
-    moving one, the fixed EGI is then focused on a ball about where the best one put the
-    moving cloud, that correlation's candidates are added, and each climbed hypothesis
-    matches the normals near
-    its own points (:meth:`SpectralStepper.focused`). The ``option.climbs`` best are
-    climbed ``option.hypothesis_iterations`` times and ranked again, by their best
-    iterate (:meth:`_Climb.best_iterate`).
+    moving one, the fixed EGI is then focused on a ball about each of the
+    ``option.focus_places`` best distinct places the candidates put the moving cloud,
+    each such correlation's candidates are added, and each climbed hypothesis matches
+    the normals near its own points (:meth:`SpectralStepper.focused`). The
+    ``option.climbs`` best are climbed ``option.hypothesis_iterations`` times and ranked
+    again, by their best iterate (:meth:`_Climb.best_iterate`).
     """
     option = stepper.option
     ranked = _candidates(stepper, moving)  # best first
@@ -490,9 +490,9 @@ def registration_spectral(
     correlation over all of SO(3) instead, climbs the best few, and returns the iterate
     of those climbs that scores best. The translation is always found globally.
     The pose is then polished by a point-to-plane ICP with correspondences within
-    0.4 voxel, or by the same after a wider first pass where that fits better
-    (``option.refinement``, ``option.refinement_wide_distance``; None keeps the law's
-    pose, correspondence-free);
+    0.4 voxel, or by the same after a wider first pass where that fits better, and
+    kept only if it has not slid off the surface (``option.refinement``,
+    ``option.refinement_wide_distance``; None keeps the law's pose, correspondence-free);
     with ``option.rank_refined`` the global search polishes each climb's best iterate,
     scores it again there and returns the best.
 

@@ -161,7 +161,7 @@ register_spectral_variant(  # measured in issue 5's notes; not the default (twic
         rank_refined=True,
     ),
 )
-register_spectral_variant(  # the global search before issue 5's eighth session
+register_spectral_variant(  # the search without search_visibility and focus_places
     "spectral_global_whole_egi",
     option=SpectralRegistrationOption(
         rotation_search="global", search_visibility=False, focus_places=1
