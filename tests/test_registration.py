@@ -292,17 +292,23 @@ def test_global_search_registers_an_object_in_a_cluttered_scene(name):
     assert symmetric_translation_error(result.transformation, T, symmetry, center=center) < 0.01
 
 
-def _global_errors(instance, **options) -> tuple[float, float]:
-    """Symmetry-aware rotation (deg) and translation (m, at the centroid) errors of the
-    global search with ``options`` on a suite instance."""
+def _global_transformation(instance, **options) -> np.ndarray:
+    """The global search's transformation (4, 4) with ``options`` on a suite instance."""
     option = o3d_spectral.SpectralRegistrationOption(rotation_search="global", **options)
     result = o3d_spectral.registration_spectral(
         instance.source, instance.target, VOXEL, option=option
     )
+    return np.asarray(result.transformation)
+
+
+def _global_errors(instance, **options) -> tuple[float, float]:
+    """Symmetry-aware rotation (deg) and translation (m, at the centroid) errors of the
+    global search with ``options`` on a suite instance."""
+    transformation = _global_transformation(instance, **options)
     T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
     return (
-        symmetric_rotation_error(result.transformation, T, symmetry),
-        symmetric_translation_error(result.transformation, T, symmetry, center=center),
+        symmetric_rotation_error(transformation, T, symmetry),
+        symmetric_translation_error(transformation, T, symmetry, center=center),
     )
 
 
@@ -380,17 +386,13 @@ def test_refinement_that_leaves_the_surface_keeps_the_law_pose():
     instance = make_instance("occluded", "scissors", rng=instance_rng(0, 154))
     source, target = instance.source, instance.target
 
-    def run(**options):
-        option = o3d_spectral.SpectralRegistrationOption(rotation_search="global", **options)
-        return o3d_spectral.registration_spectral(source, target, VOXEL, option=option)
-
     def fitness(transformation):
         evaluation = o3d.pipelines.registration.evaluate_registration(
             source, target, 0.4 * VOXEL, transformation
         )
         return evaluation.fitness
 
-    law = np.asarray(run(refinement=None).transformation)
+    law = _global_transformation(instance, refinement=None)
     assert fitness(law) > 0.02
     assert fitness(point_to_plane_refinement(source, target, VOXEL, law)) == 0.0
-    np.testing.assert_array_equal(np.asarray(run().transformation), law)
+    np.testing.assert_array_equal(_global_transformation(instance), law)
