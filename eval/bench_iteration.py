@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 
 import o3d_spectral  # noqa: E402
+from o3d_spectral.target_grid import PRECISION  # noqa: E402
 from o3d_spectral import data, fft, so3  # noqa: E402
 
 PAPER_MS = 8.7
@@ -71,9 +72,10 @@ def main() -> None:
     run_medians = [1000.0 * float(np.median(one_run())) for _ in range(args.runs)]
     iteration_ms = float(np.median(run_medians))
 
-    shape = stepper.fft_shape(moving)  # the FFT grid the iterations used
-    plan = fft.fft_plan(shape, planning=option.fft_planning)
-    grid = np.random.default_rng(0).random(shape)
+    grid_box = stepper.grid.moving_box(moving.radius, moving.centroid)
+    shape = stepper.grid.fft_shape(stepper.grid.box, grid_box)  # the iterations' FFT grid
+    plan = fft.fft_plan(shape, precision=PRECISION)  # the iterations' precision
+    grid = np.random.default_rng(0).random(shape).astype(plan.dtype)
     spectrum = np.array(plan.forward(grid))
     two_ffts_ms = _median_ms(lambda: (plan.forward(grid), plan.inverse(spectrum)),
                              args.runs * args.iterations)

@@ -22,8 +22,6 @@ from o3d_spectral import data, so3
 from o3d_spectral.symmetry import rotation_error, translation_error
 
 OBJECTS = ("mustard_bottle", "power_drill", "mug", "cracker_box", "banana", "scissors")
-PAPER = dict(voxel_weighting="binary", egi_binned=True, preconditioned=False,
-             egi_smoothing=(0.1,), target_viewpoint=None)
 
 
 def sample(name: str, seed: int) -> o3d.geometry.PointCloud:
@@ -45,9 +43,9 @@ def main() -> None:
     parser.add_argument("--independent", action="store_true")
     parser.add_argument("--paper", action="store_true")
     args = parser.parse_args()
-    option = o3d_spectral.SpectralRegistrationOption(
-        refinement=None, **(PAPER if args.paper else {})
-    )
+    option = (o3d_spectral.SpectralRegistrationOption.paper() if args.paper
+              else o3d_spectral.SpectralRegistrationOption())
+    cloud = o3d_spectral.CloudOption(target_viewpoint=None) if args.paper else None
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=300 if args.paper else 100)
     rows = []
     for index, name in enumerate(OBJECTS):
@@ -57,7 +55,8 @@ def main() -> None:
             T = motion(rng)
             target = sample(name, case + 1) if args.independent else o3d.geometry.PointCloud(source)
             result = o3d_spectral.registration_spectral(
-                source, target.transform(T), 0.008, option=option, criteria=criteria
+                source, target.transform(T), 0.008, option=option, criteria=criteria,
+                cloud=cloud, refinement=None,
             )
             rows.append((index, rotation_error(result.transformation, T),
                          1000 * translation_error(result.transformation, T, center=center),

@@ -32,12 +32,9 @@ TOLERANCE = 1e-9
 
 def _calls():
     """The calls compared: name -> function(source, target) -> 4x4 transformation."""
-    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
     return {
         "local": lambda s, t: o3d_spectral.registration_spectral(s, t, VOXEL_SIZE),
-        "global": lambda s, t: o3d_spectral.registration_spectral(
-            s, t, VOXEL_SIZE, option=option
-        ),
+        "global": lambda s, t: o3d_spectral.registration_spectral_global(s, t, VOXEL_SIZE),
     }
 
 

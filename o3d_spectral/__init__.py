@@ -1,25 +1,48 @@
 """o3d-spectral: correspondence-free spectral point-cloud registration for Open3D.
 
-The public API is flat::
+The public API is flat, one call per algorithm, shaped like Open3D's::
 
     import o3d_spectral
-    result = o3d_spectral.registration_spectral(source, target, voxel_size=0.008)
+    # unknown pose: search all rotations (like registration_fgr_based_on_feature_matching)
+    result = o3d_spectral.registration_spectral_global(source, target, voxel_size=0.008)
+    # from an initial guess: the paper's control law (like registration_icp)
+    result = o3d_spectral.registration_spectral(source, target, 0.008, init)
 
-See ``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic and bandwidth
+Settings: :class:`SpectralRegistrationOption` (representation and law),
+:class:`GlobalSearchOption`, :class:`RefinementOption`, :class:`CloudOption`,
+:class:`SpectralConvergenceCriteria`. Repeated calls against one fixed cloud (visual
+servoing): :class:`SpectralStepper`. See ``docs/architecture.md`` for the modules and
+``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic and bandwidth
 conventions.
 """
 
-from .options import SpectralConvergenceCriteria, SpectralRegistrationOption
-from .registration import IterationRecord, SpectralRegistrationResult, registration_spectral
-from .stepper import SpectralStepper, Step
+from .law import IterationRecord
+from .options import (
+    CloudOption,
+    GlobalSearchOption,
+    RefinementOption,
+    SpectralConvergenceCriteria,
+    SpectralRegistrationOption,
+)
+from .registration import (
+    SpectralRegistrationResult,
+    registration_spectral,
+    registration_spectral_global,
+)
+from .stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = [
     "registration_spectral",
+    "registration_spectral_global",
     "SpectralRegistrationOption",
+    "GlobalSearchOption",
+    "RefinementOption",
+    "CloudOption",
     "SpectralConvergenceCriteria",
     "SpectralRegistrationResult",
     "IterationRecord",
     "SpectralStepper",
-    "Step",
+    "MovingCloud",
+    "Evaluation",
 ]
 __version__ = "0.1.0"

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
-    "MIN_POINTS", "point_to_plane_icp",
+    "MIN_POINTS",
 ]
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
@@ -266,31 +266,3 @@ def prepare(
     return PreparedCloud(
         points, point_normals, normals[keep] / length[keep, None], normal_points[keep].copy()
     )
-
-
-def point_to_plane_icp(
-    source: o3d.geometry.PointCloud,
-    target: o3d.geometry.PointCloud,
-    max_distance: float,
-    init: ArrayLike,
-) -> NDArray[np.float64]:
-    """Open3D's point-to-plane ICP from ``init`` (4, 4), correspondences up to
-    ``max_distance`` metres; returns the 4x4 source-to-target transformation.
-
-    ``target`` must have normals. Runs on one thread: Open3D's multi-threaded sums
-    change the last bits of the result from run to run, and a result must repeat
-    exactly.
-    """
-    threads = o3d.utility.get_max_threads()
-    o3d.utility.set_max_threads(1)
-    try:
-        result = o3d.pipelines.registration.registration_icp(
-            source,
-            target,
-            max_distance,
-            np.asarray(init, dtype=np.float64),
-            o3d.pipelines.registration.TransformationEstimationPointToPlane(),
-        )
-    finally:
-        o3d.utility.set_max_threads(threads)
-    return np.asarray(result.transformation)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .registration import IterationRecord
+from .law import IterationRecord
 from .symmetry import rotation_error, translation_error
 
 __all__ = ["pyplot", "convergence_errors", "plot_convergence"]

@@ -1,4 +1,5 @@
-"""Rotations: the hat map, exponential and logarithm on SO(3), ZYZ Euler angles.
+"""Rotations and rigid motions: the hat map, exponential and logarithm on SO(3), ZYZ Euler
+angles, a rotation about a pivot.
 
 Conventions (see ``docs/conventions.md``): rotations are active, right-handed, angles in
 radians; ``hat(w) @ v == cross(w, v)``; ``R = Rz(alpha) @ Ry(beta) @ Rz(gamma)`` for ZYZ
@@ -19,7 +20,7 @@ __all__ = [
     "from_euler_zyz",
     "is_rotation",
     "project_to_rotation",
-    "uniform_samples",
+    "about_pivot",
 ]
 
 _EPS = 1e-12
@@ -154,32 +155,16 @@ def project_to_rotation(M: ArrayLike) -> NDArray[np.float64]:
     return U @ D @ Vt
 
 
-#: Super-Fibonacci constants (Alexa 2022): sqrt(2), and the real root of x^4 = x + 4.
-_PHI = np.sqrt(2.0)
-_PSI = 1.533751168755204288118041
+def about_pivot(
+    R: ArrayLike, T: ArrayLike, pivot: ArrayLike
+) -> NDArray[np.float64]:
+    """The rigid motion ``x -> R (x - pivot) + pivot + T`` as a 4x4 matrix.
 
-
-def uniform_samples(count: int) -> NDArray[np.float64]:
-    """``count`` rotations spread evenly over SO(3), shape (count, 3, 3).
-
-    Super-Fibonacci spirals (M. Alexa, "Super-Fibonacci spirals: fast, low-discrepancy
-    sampling of SO(3)", CVPR 2022): the ``i``-th unit quaternion, ``s = i + 1/2``, is
-    ``(sqrt(s/n) sin a, sqrt(s/n) cos a, sqrt(1 - s/n) sin b, sqrt(1 - s/n) cos b)`` with
-    ``a = 2 pi s / sqrt(2)`` and ``b = 2 pi s / psi``. Deterministic; no two samples
-    are one rotation, and the largest gap shrinks like ``count^(-1/3)``.
+    ``R`` (3, 3) turns about ``pivot`` (3,) and ``T`` (3,) then shifts (metres): the
+    control law's pose about the moving cloud's centroid (paper, Algorithm 1).
     """
-    if int(count) != count or count < 1:
-        raise ValueError(f"count must be a positive integer, got {count}")
-    s = np.arange(int(count)) + 0.5
-    near, far = np.sqrt(s / count), np.sqrt(1.0 - s / count)
-    a, b = 2.0 * np.pi * s / _PHI, 2.0 * np.pi * s / _PSI
-    x, y = near * np.sin(a), near * np.cos(a)
-    z, w = far * np.sin(b), far * np.cos(b)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
+    R, pivot = np.asarray(R, dtype=np.float64), np.asarray(pivot, dtype=np.float64)
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = pivot + np.asarray(T, dtype=np.float64) - R @ pivot
+    return out

@@ -25,8 +25,8 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral import so3
-from o3d_spectral.cloud import point_to_plane_icp
 from o3d_spectral.data import load_model
+from o3d_spectral.refinement import point_to_plane_icp
 
 __all__ = [
     "SYMMETRIC_MODELS",

@@ -42,7 +42,6 @@ def test_paper_c1_local_mode_accuracy():
     """The paper's C-1: a full model against its moved copy, rotations up to 45 deg and
     translations up to 5 cm, 8 mm voxels: <= 1 deg and <= 2 mm in >= 95% of 60 cases,
     with the law alone (no point-to-plane refinement)."""
-    option = o3d_spectral.SpectralRegistrationOption(refinement=None)
     errors = []
     for index, name in enumerate(C1_OBJECTS):
         source = sample_model(name, 20000)
@@ -50,7 +49,7 @@ def test_paper_c1_local_mode_accuracy():
         for _ in range(10):
             T = random_motion(rng)
             result = o3d_spectral.registration_spectral(
-                source, moved_copy(source, T), VOXEL, option=option
+                source, moved_copy(source, T), VOXEL, refinement=None
             )
             center = np.asarray(source.points).mean(axis=0)
             errors.append((rotation_error(result.transformation, T),
@@ -191,34 +190,51 @@ def test_bad_input_raises_clear_errors(pair):
         o3d_spectral.registration_spectral("cloud.ply", target, VOXEL)
 
 
-def test_option_and_criteria_validate_their_values():
-    with pytest.raises(ValueError, match="lambda_r"):
-        o3d_spectral.SpectralRegistrationOption(lambda_r=1.5)
-    with pytest.raises(ValueError, match="bandwidth"):
-        o3d_spectral.SpectralRegistrationOption(bandwidth=1)
-    with pytest.raises(ValueError, match="voxel_weighting"):
-        o3d_spectral.SpectralRegistrationOption(voxel_weighting="nearest")
-    with pytest.raises(ValueError, match="max_iteration"):
-        o3d_spectral.SpectralConvergenceCriteria(max_iteration=0)
-    with pytest.raises(ValueError, match="translation_window"):
-        o3d_spectral.SpectralRegistrationOption(translation_window=1)
-    with pytest.raises(ValueError, match="climbs"):
-        o3d_spectral.SpectralRegistrationOption(hypotheses=4, climbs=5)
-    with pytest.raises(ValueError, match="refinement"):
-        o3d_spectral.SpectralRegistrationOption(refinement="icp")
-    with pytest.raises(ValueError, match="hypothesis_score"):
-        o3d_spectral.SpectralRegistrationOption(hypothesis_score="rmse")
-    with pytest.raises(ValueError, match="refinement_wide_distance"):
-        o3d_spectral.SpectralRegistrationOption(refinement_wide_distance=0.0)
-    with pytest.raises(ValueError, match="focus_places"):
-        o3d_spectral.SpectralRegistrationOption(focus_places=0)
-    with pytest.raises(ValueError, match="placed_again"):
-        o3d_spectral.SpectralRegistrationOption(placed_again=2)
-    with pytest.raises(ValueError, match="placement_coarsening"):
-        o3d_spectral.SpectralRegistrationOption(placement_coarsening=0)
+@pytest.mark.parametrize(
+    "cls, field, value, error",
+    [
+        (o3d_spectral.SpectralRegistrationOption, "lambda_r", 1.5, ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "lambda_t", float("nan"), ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "bandwidth", 1, ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "bandwidth", 16.5, TypeError),
+        (o3d_spectral.SpectralRegistrationOption, "voxel_weighting", "nearest", ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "translation_window", 1, ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "egi_binned", "False", TypeError),
+        (o3d_spectral.SpectralRegistrationOption, "peak_width", float("inf"), ValueError),
+        (o3d_spectral.SpectralRegistrationOption, "egi_smoothing", (0.3, -0.1), ValueError),
+        (o3d_spectral.CloudOption, "normal_radius", 0.0, ValueError),
+        (o3d_spectral.CloudOption, "camera_location", (0.0, float("nan"), 0.0), ValueError),
+        (o3d_spectral.CloudOption, "target_viewpoint", "sensor", ValueError),
+        (o3d_spectral.CloudOption, "target_viewpoint", (0.0, 1.0), ValueError),
+        (o3d_spectral.GlobalSearchOption, "climbs", 40, ValueError),
+        (o3d_spectral.GlobalSearchOption, "focus_places", 0, ValueError),
+        (o3d_spectral.GlobalSearchOption, "egi_focus", 1, TypeError),
+        (o3d_spectral.RefinementOption, "wide_distance", 0.0, ValueError),
+        (o3d_spectral.RefinementOption, "distance", -1.0, ValueError),
+        (o3d_spectral.SpectralConvergenceCriteria, "max_iteration", 0, ValueError),
+        (o3d_spectral.SpectralConvergenceCriteria, "rotation_tolerance", float("nan"), ValueError),
+    ],
+)
+def test_options_reject_bad_values_naming_the_field(cls, field, value, error):
+    with pytest.raises(error, match=field):
+        cls(**{field: value})
+
+
+def test_options_normalise_and_print_their_values():
     option = o3d_spectral.SpectralRegistrationOption(egi_smoothing=0.2)
     assert option.egi_smoothing == (0.2,)
     assert "bandwidth=16" in repr(o3d_spectral.SpectralRegistrationOption())
+    assert "climbs=4" in repr(o3d_spectral.GlobalSearchOption())
+    view = o3d_spectral.CloudOption(target_viewpoint=np.array([0, 0, 1]))
+    assert view.target_viewpoint == (0.0, 0.0, 1.0)
+
+
+def test_global_call_rejects_an_euler_grid_too_coarse_for_the_bandwidth(pair):
+    source, target, _ = pair
+    with pytest.raises(ValueError, match="search_samples"):
+        o3d_spectral.registration_spectral_global(
+            source, target, VOXEL, search=o3d_spectral.GlobalSearchOption(search_samples=16)
+        )
 
 
 @pytest.mark.parametrize("with_normals", [True, False])
@@ -226,9 +242,7 @@ def test_point_to_plane_refinement_polishes_the_spectral_pose(pair, with_normals
     source, target, T = pair
     fixed = target if with_normals else np.asarray(target.points)  # normals from the stepper
     center = np.asarray(source.points).mean(axis=0)
-    plain = o3d_spectral.registration_spectral(
-        source, fixed, VOXEL, option=o3d_spectral.SpectralRegistrationOption(refinement=None)
-    )
+    plain = o3d_spectral.registration_spectral(source, fixed, VOXEL, refinement=None)
     refined = o3d_spectral.registration_spectral(source, fixed, VOXEL)  # the default
     # An exact copy: ICP from the spectral pose lands on it, well below the law's own error.
     assert rotation_error(refined.transformation, T) < 0.02
@@ -240,7 +254,7 @@ def test_point_to_plane_refinement_polishes_the_spectral_pose(pair, with_normals
     "option",
     [
         dict(voxel_weighting="binary", egi_binned=True, preconditioned=False,
-             egi_smoothing=(0.1,)),  # the paper's choices
+             egi_smoothing=(0.1,), translation_window=None),  # the paper's choices
         dict(bandwidth=8),
         dict(voxel_weighting="count"),
     ],
@@ -263,11 +277,9 @@ def test_global_search_recovers_a_large_rotation():
     T = np.eye(4)
     T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
     T[:3, 3] = [0.05, 0.1, -0.02]
-    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
-    result = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL,
-                                                option=option)
+    result = o3d_spectral.registration_spectral_global(source, moved_copy(source, T), VOXEL)
     _accurate(result, T, source.points)
-    assert len(result.hypotheses) == option.climbs
+    assert len(result.hypotheses) == o3d_spectral.GlobalSearchOption().climbs
     scores = [score for _, score in result.hypotheses]
     assert scores == sorted(scores, reverse=True)
     assert 0 <= result.confidence <= scores[0]
@@ -282,29 +294,26 @@ def test_global_search_registers_an_object_in_a_cluttered_scene(name):
     other objects included): the global search with its focused EGI registers the object
     from any rotation within 5 deg and 1 cm."""
     instance = make_instance("cluttered", name, rng=np.random.default_rng(1))
-    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
-    result = o3d_spectral.registration_spectral(
-        instance.source, instance.target, VOXEL, option=option
-    )
+    result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
     T, symmetry = instance.T_gt, instance.symmetry
     assert symmetric_rotation_error(result.transformation, T, symmetry) < 5.0
     center = instance.source_center
     assert symmetric_translation_error(result.transformation, T, symmetry, center=center) < 0.01
 
 
-def _global_transformation(instance, **options) -> np.ndarray:
-    """The global search's transformation (4, 4) with ``options`` on a suite instance."""
-    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global", **options)
-    result = o3d_spectral.registration_spectral(
-        instance.source, instance.target, VOXEL, option=option
+def _global_transformation(instance, **settings) -> np.ndarray:
+    """The global call's transformation (4, 4) with keyword ``settings`` on a suite
+    instance."""
+    result = o3d_spectral.registration_spectral_global(
+        instance.source, instance.target, VOXEL, **settings
     )
     return np.asarray(result.transformation)
 
 
-def _global_errors(instance, **options) -> tuple[float, float]:
+def _global_errors(instance, **settings) -> tuple[float, float]:
     """Symmetry-aware rotation (deg) and translation (m, at the centroid) errors of the
-    global search with ``options`` on a suite instance."""
-    transformation = _global_transformation(instance, **options)
+    global call with keyword ``settings`` on a suite instance."""
+    transformation = _global_transformation(instance, **settings)
     T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
     return (
         symmetric_rotation_error(transformation, T, symmetry),
@@ -317,7 +326,10 @@ def test_focused_egi_finds_what_the_whole_scene_egi_misses():
     """Instance 2 of the cluttered suite (seed 0): the whole scene's EGI alone points the
     cracker box the wrong way; focused on where it was located, it registers it."""
     instance = make_instance("cluttered", "cracker_box", rng=instance_rng(0, 2))
-    errors = {focus: _global_errors(instance, egi_focus=focus) for focus in (True, False)}
+    errors = {
+        focus: _global_errors(instance, search=o3d_spectral.GlobalSearchOption(egi_focus=focus))
+        for focus in (True, False)
+    }
     assert errors[True][0] < 5.0 and errors[True][1] < 0.01
     assert errors[False][0] > 5.0
 
@@ -329,10 +341,7 @@ def test_global_search_returns_its_best_scoring_iterate():
     returns the iterate that scores best, which is right."""
     instance = make_instance("partial", "bowl", rng=instance_rng(0, 1))
     T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
-    option = o3d_spectral.SpectralRegistrationOption(rotation_search="global")
-    result = o3d_spectral.registration_spectral(
-        instance.source, instance.target, VOXEL, option=option
-    )
+    result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
     assert symmetric_rotation_error(result.transformation, T, symmetry) < 5.0
     assert symmetric_translation_error(result.transformation, T, symmetry, center=center) < 0.01
     last = result.history[-1].transformation
@@ -341,26 +350,17 @@ def test_global_search_returns_its_best_scoring_iterate():
 
 
 @pytest.mark.slow
-def test_sampled_rotations_find_what_the_egi_peaks_miss():
-    """Instance 24 of the occluded suite (seed 0): a banana with part of its view hidden.
-    None of the EGI correlation's peaks is near its rotation; rotations spread over SO(3)
-    and ranked by their phase-correlation peak find it."""
-    instance = make_instance("occluded", "banana", rng=instance_rng(0, 24))
-    errors = {
-        sampled: _global_errors(instance, sampled_rotations=sampled, rank_refined=sampled > 0)
-        for sampled in (0, 300)
-    }
-    assert errors[300][0] < 5.0 and errors[300][1] < 0.01
-    assert errors[0][0] > 5.0
-
-
-@pytest.mark.slow
 def test_focus_on_several_places_finds_an_object_the_first_place_misses():
     """Instance 47 of the cluttered suite (seed 0), a tomato soup can among other
     objects: the best whole-scene hypotheses put it elsewhere, so the EGI focused on that
     place alone misleads; focused on the three best distinct places, it is registered."""
     instance = make_instance("cluttered", "tomato_soup_can", rng=instance_rng(0, 47))
-    errors = {places: _global_errors(instance, focus_places=places) for places in (1, 3)}
+    errors = {
+        places: _global_errors(
+            instance, search=o3d_spectral.GlobalSearchOption(focus_places=places)
+        )
+        for places in (1, 3)
+    }
     assert errors[3][0] < 5.0 and errors[3][1] < 0.01
     assert errors[1][1] > 0.05  # another place, not a near miss
 
@@ -370,7 +370,7 @@ def test_wide_refinement_turns_a_mug_the_tight_one_leaves():
     its axis, where the handle lies beyond the 0.4-voxel ICP's correspondences; the ICP
     after a 1-voxel pass fits better and is kept."""
     instance = make_instance("full", "mug", rng=instance_rng(0, 198))
-    tight = _global_errors(instance, refinement_wide_distance=None)
+    tight = _global_errors(instance, refinement=o3d_spectral.RefinementOption(wide_distance=None))
     wide = _global_errors(instance)
     assert tight[0] > 5.0
     assert wide[0] < 0.5 and wide[1] < 0.001
@@ -381,7 +381,7 @@ def test_refinement_that_leaves_the_surface_keeps_the_law_pose():
     """Instance 154 of the occluded suite (seed 0), scissors: the search's best pose is
     wrong and holds few points within 0.4 voxel; the point-to-plane ICP from it slides
     off the surface (in the suite's run, 90 m away). The result keeps the law's pose."""
-    from o3d_spectral.registration import point_to_plane_refinement
+    from o3d_spectral.refinement import point_to_plane_refinement
 
     instance = make_instance("occluded", "scissors", rng=instance_rng(0, 154))
     source, target = instance.source, instance.target

@@ -69,25 +69,12 @@ def test_log_inverts_exp_inside_the_ball_of_radius_pi(w):
     assert so3.is_rotation(so3.exp(w), atol=1e-12)
 
 
-@pytest.mark.parametrize("count", [100, 300])
-def test_uniform_samples_spread_like_the_haar_measure(count):
-    """Super-Fibonacci rotations: valid, reproducible, with the Haar measure's first two
-    moments (E[R] = 0, E[R_ij^2] = 1/3) and a covering radius within 1.6 times that of
-    ideal balls (n (t - sin t) / pi = 1); independent random rotations need about 2x."""
-    R = so3.uniform_samples(count)
-    assert R.shape == (count, 3, 3)
-    assert all(so3.is_rotation(r, atol=1e-12) for r in R)
-    np.testing.assert_array_equal(R, so3.uniform_samples(count))
-    assert np.abs(R.mean(axis=0)).max() < 0.02
-    assert np.abs((R**2).mean(axis=0) - 1.0 / 3.0).max() < 0.005
-    queries = Rotation.random(4000, random_state=1).as_matrix()
-    cosine = (np.einsum("qij,nij->qn", queries, R) - 1.0) / 2.0
-    covering = np.arccos(np.clip(cosine, -1.0, 1.0)).min(axis=1).max()
-    t = np.linspace(1e-3, np.pi, 100000)
-    ideal = t[np.searchsorted(count * (t - np.sin(t)) / np.pi, 1.0)]
-    assert covering < 1.6 * ideal
 
-
-def test_uniform_samples_rejects_a_bad_count():
-    with pytest.raises(ValueError, match="positive integer"):
-        so3.uniform_samples(0)
+def test_about_pivot_turns_about_the_pivot_then_shifts():
+    rng = np.random.default_rng(5)
+    R, T, pivot = so3.exp(rng.normal(size=3)), rng.normal(size=3), rng.normal(size=3)
+    M = so3.about_pivot(R, T, pivot)
+    np.testing.assert_allclose(M @ np.r_[pivot, 1.0], np.r_[pivot + T, 1.0], atol=1e-12)
+    x = rng.normal(size=3)
+    np.testing.assert_allclose(M[:3, :3] @ x + M[:3, 3], R @ (x - pivot) + pivot + T, atol=1e-12)
+    np.testing.assert_array_equal(M[3], [0.0, 0.0, 0.0, 1.0])

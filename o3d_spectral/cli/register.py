@@ -17,13 +17,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "register",
         help="align SOURCE to TARGET and print the 4x4 transformation",
         description="Align SOURCE onto TARGET with spectral registration; prints the "
-        "source-to-target 4x4 matrix and the fit.",
+        "source-to-target 4x4 matrix and the fit. Without --init the rotation is searched "
+        "over all of SO(3) (registration_spectral_global); with --init the paper's law "
+        "runs from it (registration_spectral).",
         epilog=EXAMPLE,
     )
     parser.add_argument("source", type=Path, help="source cloud (any file Open3D reads)")
     parser.add_argument("target", type=Path, help="target cloud (any file Open3D reads)")
     parser.add_argument("--voxel-size", type=float, required=True, help="voxel edge, metres")
-    parser.add_argument("--init", type=Path, help="text file with a 4x4 initial transformation")
+    parser.add_argument(
+        "--init", type=Path,
+        help="text file with a 4x4 initial transformation (then a local registration)",
+    )
     parser.add_argument("--bandwidth", type=int, default=16, help="EGI bandwidth B (l < B)")
     parser.add_argument("--max-iteration", type=int, default=100)
     parser.add_argument("--json", action="store_true", help="print a JSON object instead")
@@ -49,15 +54,17 @@ def _read_cloud(path: Path):
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
 
-    init = np.loadtxt(args.init) if args.init else np.eye(4)
-    result = o3d_spectral.registration_spectral(
-        _read_cloud(args.source),
-        _read_cloud(args.target),
-        args.voxel_size,
-        init=init,
-        option=o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth),
-        criteria=o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration),
-    )
+    source, target = _read_cloud(args.source), _read_cloud(args.target)
+    option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
+    criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
+    if args.init:
+        result = o3d_spectral.registration_spectral(
+            source, target, args.voxel_size, np.loadtxt(args.init), option, criteria
+        )
+    else:
+        result = o3d_spectral.registration_spectral_global(
+            source, target, args.voxel_size, option, criteria
+        )
     summary = {
         "transformation": result.transformation.tolist(),
         "fitness": result.fitness,

@@ -27,11 +27,13 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral import (
-    SpectralConvergenceCriteria,
+    CloudOption,
+    GlobalSearchOption,
     SpectralRegistrationOption,
     registration_spectral,
+    registration_spectral_global,
 )
-from o3d_spectral.registration import point_to_plane_refinement
+from o3d_spectral.refinement import point_to_plane_refinement
 
 __all__ = [
     "INFO_KEYS",
@@ -103,20 +105,19 @@ def method_names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
-def register_spectral_variant(
-    name: str,
-    *,
-    option: SpectralRegistrationOption | None = None,
-    criteria: SpectralConvergenceCriteria | None = None,
-) -> Method:
-    """Register ``registration_spectral`` from the identity with fixed settings as ``name``.
+def register_spectral_variant(name: str, *, global_search: bool = False, **settings) -> Method:
+    """Register a spectral call with fixed settings as ``name``: the local call
+    (:func:`o3d_spectral.registration_spectral` from the identity) or, with
+    ``global_search``, :func:`o3d_spectral.registration_spectral_global`.
 
-    The method is deterministic and ignores its seed; its ``info`` holds every key of
-    :data:`INFO_KEYS`.
+    ``settings`` are the call's keyword arguments (``option``, ``criteria``, ``search``,
+    ``cloud``, ``refinement``). The method is deterministic and ignores its seed; its
+    ``info`` holds every key of :data:`INFO_KEYS`.
     """
+    call = registration_spectral_global if global_search else registration_spectral
 
     def spectral(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-        result = registration_spectral(source, target, voxel_size, option=option, criteria=criteria)
+        result = call(source, target, voxel_size, **settings)
         last = result.history[-1]
         info = {
             "iterations": result.num_iterations,
@@ -127,45 +128,24 @@ def register_spectral_variant(
         }
         return np.asarray(result.transformation), info
 
-    spectral.__doc__ = f"registration_spectral with option={option!r}, criteria={criteria!r}."
+    described = ", ".join(f"{key}={value!r}" for key, value in settings.items())
+    spectral.__doc__ = f"{call.__name__} with {described or 'its defaults'}."
     return register_method(name)(spectral)
 
 
 register_spectral_variant("spectral")
 register_spectral_variant(
     "spectral_paper",
-    option=SpectralRegistrationOption(
-        voxel_weighting="binary",
-        egi_binned=True,
-        preconditioned=False,
-        egi_smoothing=(0.1,),
-        target_viewpoint=None,
-        translation_window=None,
-        refinement=None,
-    ),
+    option=SpectralRegistrationOption.paper(),
+    cloud=CloudOption(target_viewpoint=None),
+    refinement=None,
 )
-register_spectral_variant(
-    "spectral_global", option=SpectralRegistrationOption(rotation_search="global")
-)
-register_spectral_variant(
-    "spectral_global_unrefined",
-    option=SpectralRegistrationOption(rotation_search="global", refinement=None),
-)
-register_spectral_variant(  # measured in issue 5's notes; not the default (twice the time)
-    "spectral_global_sampled",
-    option=SpectralRegistrationOption(
-        rotation_search="global",
-        sampled_rotations=300,
-        placement_coarsening=2,
-        placed_again=32,
-        rank_refined=True,
-    ),
-)
+register_spectral_variant("spectral_global", global_search=True)
+register_spectral_variant("spectral_global_unrefined", global_search=True, refinement=None)
 register_spectral_variant(  # the search without search_visibility and focus_places
     "spectral_global_whole_egi",
-    option=SpectralRegistrationOption(
-        rotation_search="global", search_visibility=False, focus_places=1
-    ),
+    global_search=True,
+    search=GlobalSearchOption(search_visibility=False, focus_places=1),
 )
 
 

@@ -9,13 +9,15 @@ law on whole-scene clouds (no segmentation, no correspondences)::
         trial = servo.random_trial(0, arm, servo.Sensor())
     print(trial.run.final.translation_error, trial.run.converged)
 
-One module per part: ``robot`` (the arm and hand-eye transform), ``scene`` (tabletop,
+One module per part: ``law`` (one control cycle: global search, then the paper's
+law; needs no simulator), ``robot`` (the arm and hand-eye transform), ``scene`` (tabletop,
 sensor, start poses), ``control`` (twist, damped pseudo-inverse, limits), ``loop`` (the
 paper's Algorithm 1), ``figures``. Needs the ``servo`` extra (pybullet); see
 ``docs/servo.md``.
 """
 
 from .control import camera_twist, damped_pseudo_inverse, joint_velocities, limit_velocities
+from .law import ServoLaw, Step
 from .loop import (
     Cycle,
     ServoOptions,
@@ -38,6 +40,8 @@ from .scene import (
 )
 
 __all__ = [
+    "ServoLaw",
+    "Step",
     "Arm",
     "HAND_EYE",
     "WORLD_FROM_BASE",

@@ -2,7 +2,7 @@
 
 Capture the reference cloud at the desired pose and compute its spectra once; then each
 cycle: capture the whole scene, compute the control law's increments
-(:meth:`o3d_spectral.SpectralStepper.step`), turn them into a camera twist, map it to
+(:meth:`o3d_spectral.servo.ServoLaw.step`), turn them into a camera twist, map it to
 joint velocities with the damped pseudo-inverse of the camera-frame Jacobian, limit them,
 integrate for one period. Stop when both of the law's full corrections, at the finest EGI
 smoothing level, are below their tolerances (the paper's gradient test, with one
@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import so3
-from ..options import SpectralRegistrationOption
-from ..stepper import SpectralStepper
+from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
 from .control import camera_twist, joint_velocities, limit_velocities
+from .law import ServoLaw
 from .robot import Arm
 from .scene import Sensor, Start, Tabletop, desired_pose, make_tabletop, sample_start
 
@@ -55,18 +55,26 @@ class ServoOptions:
         Joints are stopped this far inside their URDF limits.
     registration : SpectralRegistrationOption
         The control law's settings (gains ``lambda_t``, ``lambda_r``, ...). Default: the
-        library's, without back-face culling (``target_viewpoint=None``): both clouds
-        are single views in their own sensor frames, so the culling's incidence weighting
-        would weigh the current cloud's EGI and not the reference's; with half the
-        library's translation gain (``lambda_t=0.25``): from 30-40 degrees the camera
-        then translates less before the rotation has settled; with the global search
-        first (``rotation_search="global"`` on a 128^3 Euler grid, see
-        :meth:`o3d_spectral.SpectralStepper.step`): from 30-40 degrees the law alone
-        may climb a wrong peak of the whole-scene correlation; and with normals
-        averaged in 5 mm cells for the EGI (``egi_voxel_size``; the library's default
-        is a quarter voxel, 2.5 mm here), coarser than this 320 x 240 sensor's
-        spacing of about 2 mm at 0.6 m, so that oblique surfaces are not
-        under-counted (docs/servo.md).
+        library's with half its translation gain (``lambda_t=0.25``): from 30-40 degrees
+        the camera then translates less before the rotation has settled; and with normals
+        averaged in 5 mm cells for the EGI (``egi_voxel_size``; the library's default is
+        a quarter voxel, 2.5 mm here), coarser than this 320 x 240 sensor's spacing of
+        about 2 mm at 0.6 m, so that oblique surfaces are not under-counted
+        (docs/servo.md).
+    cloud : CloudOption
+        Default: no back-face culling (``target_viewpoint=None``): both clouds are single
+        views in their own sensor frames, so the culling's incidence weighting would
+        weigh the current cloud's EGI and not the reference's.
+    search : GlobalSearchOption or None
+        The global search first (:class:`~o3d_spectral.servo.ServoLaw`), on a 128^3
+        Euler grid: from 30-40 degrees the law alone may climb a wrong peak of the
+        whole-scene correlation. None: the paper's law alone.
+    handover_angle : float
+        The law takes over once the best hypothesis' rotation is this close to the
+        identity, radians.
+    law_reach : float
+        When the law's increments since the handover add up to a turn larger than this
+        (radians), the global search starts again.
     """
 
     period: float = 0.1
@@ -77,15 +85,18 @@ class ServoOptions:
     damping: float = 0.01
     limit_margin: float = np.deg2rad(1.0)
     registration: SpectralRegistrationOption = field(
-        default_factory=lambda: SpectralRegistrationOption(
-            target_viewpoint=None, lambda_t=0.25, rotation_search="global", search_samples=128,
-            egi_voxel_size=0.005,
-        )
+        default_factory=lambda: SpectralRegistrationOption(lambda_t=0.25, egi_voxel_size=0.005)
     )
+    cloud: CloudOption = field(default_factory=lambda: CloudOption(target_viewpoint=None))
+    search: GlobalSearchOption | None = field(
+        default_factory=lambda: GlobalSearchOption(search_samples=128)
+    )
+    handover_angle: float = np.deg2rad(3.0)
+    law_reach: float = np.deg2rad(15.0)
 
     def __post_init__(self) -> None:
         for name in ("period", "max_time", "voxel_size", "translation_tolerance",
-                     "rotation_tolerance"):
+                     "rotation_tolerance", "handover_angle", "law_reach"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         for name in ("damping", "limit_margin"):
@@ -201,8 +212,12 @@ def servo(
     options = options or ServoOptions()
     desired = arm.camera_pose(desired_q)
     reference = sensor.capture(scene, desired, rng=rng)
-    stepper = SpectralStepper(reference, options.voxel_size, option=options.registration)
-    stepper.reset()
+    law = ServoLaw(
+        reference, options.voxel_size, option=options.registration, cloud=options.cloud,
+        search=options.search, handover_angle=options.handover_angle,
+        law_reach=options.law_reach,
+    )
+    tolerance = (options.translation_tolerance, options.rotation_tolerance)
     lower, upper = arm.lower + options.limit_margin, arm.upper - options.limit_margin
     q = np.asarray(start_q, dtype=np.float64).copy()
     cycles: list[Cycle] = []
@@ -212,15 +227,11 @@ def servo(
         pose = arm.camera_pose(q)
         cloud = sensor.capture(scene, pose, rng=rng)
         tic = time.perf_counter()
-        finest = stepper.level == stepper.levels - 1  # the level this cycle's law uses
-        step = stepper.step(cloud)
+        finest = law.finest  # the level this cycle's law uses
+        step = law.step(cloud)
         correction_t = float(np.linalg.norm(step.evaluation.translation))
         correction_r = float(np.linalg.norm(step.evaluation.rotation))
-        converged = bool(
-            finest
-            and correction_t < options.translation_tolerance
-            and correction_r < options.rotation_tolerance
-        )
+        converged = finest and step.evaluation.within(tolerance)
         qdot = np.zeros_like(q)
         if not converged and k < steps:
             twist = camera_twist(step.transformation, options.period)

@@ -1,0 +1,162 @@
+"""The search over all of SO(3): candidates, placement, focus, climbs and ranking.
+
+The paper's law is a local gradient ascent. From an unknown pose,
+:func:`global_search` starts it from many places instead (METHOD.md, section 7):
+
+1. **Candidates**: the highest peaks of the rotation correlation evaluated over the whole
+   of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`).
+2. **Placement**: each candidate rotation is placed by one phase correlation and scored by
+   that correlation's peak height (how well the turned grid matches under any shift):
+   :func:`hypotheses`.
+3. **Focus**: in a scene larger than the moving cloud, the scene's EGI is restricted to a
+   ball about each of the best distinct places (:func:`places`) and searched again there.
+4. **Climbs**: the best hypotheses are climbed a few iterations by the law
+   (:func:`o3d_spectral.law.climb`) and ranked by their best iterate
+   (:meth:`o3d_spectral.law.Climb.best_iterate`).
+
+The registration then climbs the best on to convergence and returns the best-scoring
+iterate of all the climbs, with :func:`confidence`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import so3
+from .law import Climb, climb
+from .options import GlobalSearchOption
+from .so3fft import peaks
+from .stepper import MovingCloud, SpectralStepper
+
+__all__ = [
+    "Hypothesis", "hypotheses", "places", "global_search", "confidence", "DISTINCT_ANGLE",
+    "FOCUS_MARGIN",
+]
+
+#: Rotations further apart than this (radians) are distinct hypotheses (confidence).
+DISTINCT_ANGLE = np.deg2rad(10.0)
+#: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
+#: distance (voxels) from a hypothesis' points of the normals its climb matches.
+FOCUS_MARGIN = 2.0
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A peak of the rotation correlation over SO(3), placed by phase correlation.
+
+    The moving cloud fits the fixed one at ``x -> rotation (x - c) + centre`` (``c``:
+    its centroid).
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        The peak's rotation, about the moving cloud's centroid.
+    centre : ndarray, shape (3,)
+        Where the phase correlation puts the turned cloud's centroid, metres.
+    translation_peak : float
+        Height of that phase-correlation peak in [0, 1]: the hypothesis' score.
+    cost_translation : float
+        ``J_t`` of the turned cloud before that shift, in [0, 2].
+    """
+
+    rotation: NDArray[np.float64]
+    centre: NDArray[np.float64]
+    translation_peak: float
+    cost_translation: float
+
+    def climb(self, moving: MovingCloud) -> Climb:
+        """A climb of the law starting at this hypothesis."""
+        return Climb(moving.centroid, self.rotation, self.centre - moving.centroid,
+                     predicted=self.centre)
+
+
+def hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
+    around: ArrayLike | None = None,
+) -> list[Hypothesis]:
+    """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3), each placed by phase
+    correlation (near ``around``, metres, when given), highest placed peak first."""
+    grid = stepper.rotation_grid(
+        moving, search.samples(stepper.option.bandwidth), visibility=search.search_visibility
+    )
+    found = []
+    for R, _ in peaks(grid, count=search.hypotheses):
+        centre, peak, cost = stepper.locate(moving, R, around=around)
+        found.append(Hypothesis(R, centre, peak, cost))
+    return sorted(found, key=lambda h: -h.translation_peak)
+
+
+def places(ranked: list[Hypothesis], separation: float) -> list[NDArray[np.float64]]:
+    """Where the ranked hypotheses put the moving cloud's centroid (metres), best first,
+    each over ``separation`` (metres) from the ones before."""
+    found: list[NDArray[np.float64]] = []
+    for h in ranked:
+        if all(np.linalg.norm(h.centre - p) > separation for p in found):
+            found.append(h.centre)
+    return found
+
+
+def _focused_hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption,
+    ranked: list[Hypothesis],
+) -> tuple[list[Hypothesis], bool]:
+    """``ranked`` and the hypotheses of the EGI focused on each of the
+    ``search.focus_places`` best places, best first; and whether any focus applied."""
+    radius = moving.radius + FOCUS_MARGIN * stepper.voxel_size
+    focus = False
+    for located in places(ranked, moving.radius)[: search.focus_places]:
+        ball = stepper.focused(located[None, :], radius)
+        if ball is stepper:  # the fixed cloud is about the moving one's size
+            break
+        focus = True
+        ranked = ranked + hypotheses(ball, moving, search, around=located)
+    return sorted(ranked, key=lambda h: -h.translation_peak), focus
+
+
+def global_search(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
+    iterations: int, tolerance: tuple[float, float], init: NDArray[np.float64], start: float,
+) -> list[Climb]:
+    """Hypotheses from the whole of SO(3), the best climbed a little, best first.
+
+    Parameters
+    ----------
+    stepper : SpectralStepper
+    moving : MovingCloud
+    search : GlobalSearchOption
+    iterations : int
+        Iterations of each climb (at most ``search.hypothesis_iterations``).
+    tolerance, init, start
+        As for :func:`o3d_spectral.law.climb`.
+
+    Returns
+    -------
+    list of Climb
+        The ``search.climbs`` best hypotheses after their climbs, by their best iterate's
+        score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
+    """
+    ranked = hypotheses(stepper, moving, search)
+    focus = False
+    if search.egi_focus:
+        ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
+    climbs = [h.climb(moving) for h in ranked[: search.climbs]]
+    for state in climbs:
+        if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
+            near, _, _ = stepper.visible(moving, state.R, state.T)
+            state.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
+        climb(stepper, moving, state, iterations, tolerance, init, start)
+    return sorted(climbs, key=lambda state: -state.best_iterate()[0])
+
+
+def confidence(ranked: list[tuple[float, NDArray[np.float64]]]) -> float:
+    """Best score minus the best score of a transformation over ``DISTINCT_ANGLE`` away
+    (in rotation) from the best; the best score when every one is near it. ``ranked``:
+    (score, 4x4 transformation), best first."""
+    best_score, best = ranked[0]
+    for score, other in ranked[1:]:
+        if so3.rotation_angle(other[:3, :3].T @ best[:3, :3]) > DISTINCT_ANGLE:
+            return best_score - score
+    return best_score

@@ -1,0 +1,181 @@
+"""The fixed cloud's voxel grid and the phase correlation of moving clouds against it.
+
+:class:`TargetGrid` splats the fixed cloud once on a lattice anchored at the voxel size,
+caches the spectra of the blocks it is correlated on, and turns a moving cloud's points
+into the shift that takes them onto the fixed cloud (paper, eq. fourier_shift_solution),
+the peak's height and the translation cost ``J_t``. Grids of the moving cloud are cubes
+large enough to hold it under any rotation; the FFT size per axis is the fixed block's
+size plus the moving grid's (rounded up to a fast length), which keeps every shift
+between the two unambiguous whatever the distance between the clouds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .fft import RealFFT3, fft_plan, next_fast_len
+from .grid import Box, Lattice, check_memory, splat
+from .translation import cross_power_peak
+
+__all__ = ["Placement", "TargetGrid"]
+
+#: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
+CACHED_SPECTRA = 8
+#: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
+#: does not need more.
+PRECISION = "single"
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one phase correlation puts a moving cloud.
+
+    Attributes
+    ----------
+    shift : ndarray, shape (3,)
+        Shift (metres) taking the moving points onto the fixed cloud.
+    peak : float
+        Height of the phase-correlation peak in [0, 1] (1: identical grids).
+    cost : float
+        ``J_t = 1/2 ||g - f||^2`` of the unit-norm grids before the shift, in [0, 2].
+    """
+
+    shift: NDArray[np.float64]
+    peak: float
+    cost: float
+
+
+class TargetGrid:
+    """The fixed cloud's unit-norm voxel grid, its cached spectra, and phase correlation.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+        The fixed cloud's down-sampled points, metres.
+    voxel_size : float
+        Voxel edge, metres.
+    weighting : {"trilinear", "count", "binary"}
+        How points fill the grid (:func:`o3d_spectral.grid.splat`).
+    peak_width : float
+        Width of the Gaussian window of the correlation, voxels.
+    window : int or None
+        Margin (voxels) of the block searched near an expected position (:meth:`search_box`).
+    max_memory : float
+        Largest memory (bytes) of one FFT grid.
+    """
+
+    def __init__(
+        self, points: NDArray[np.float64], voxel_size: float, *, weighting: str,
+        peak_width: float, window: int | None, max_memory: float,
+    ) -> None:
+        self.voxel_size = voxel_size
+        self.weighting, self.peak_width = weighting, peak_width
+        self.window, self.max_memory = window, max_memory
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, voxel_size)
+        self.box = self.lattice.box_around(lower, upper, margin=2)
+        check_memory(self.box.shape, max_memory, "target")
+        grid = splat(points, self.box, mode=weighting)
+        self._grid = grid / np.linalg.norm(grid)
+        self._spectra: dict[tuple, NDArray[np.complexfloating]] = {}
+
+    def moving_box(self, radius: float, centre: NDArray[np.float64]) -> Box:
+        """The cube holding a moving cloud of ``radius`` (metres) centred at ``centre``
+        under any rotation."""
+        side = next_fast_len(int(np.ceil(2.0 * radius / self.voxel_size)) + 4)
+        half = side / 2.0 * self.voxel_size
+        offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
+        return Box(self.lattice, offset.astype(np.int64), (side, side, side))
+
+    @staticmethod
+    def fft_shape(fixed: Box, moving: Box) -> tuple[int, int, int]:
+        """The FFT grid on which ``moving`` is correlated with ``fixed``."""
+        return tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, moving.shape, strict=True))
+
+    def search_box(self, radius: float, around: ArrayLike | None = None) -> Box:
+        """The block of the fixed grid a moving cloud of ``radius`` is correlated with.
+
+        The whole fixed grid when ``around`` or ``window`` is None (a global search).
+        Otherwise a cube of the moving grid's side plus ``window`` voxels on each side,
+        centred near ``around`` (metres, where the moving cloud's centroid is expected:
+        snapped to a coarse step so that nearby predictions share one block and its cached
+        spectrum), when its FFT is less than half the whole grid's.
+        """
+        if around is None or self.window is None:
+            return self.box
+        moving = self.moving_box(radius, np.zeros(3))
+        side = moving.shape[0] + 2 * self.window
+        snap = max(self.window // 2, 1)
+        centre = (np.asarray(around, dtype=np.float64) - self.lattice.origin) / self.voxel_size
+        offset = (np.round(centre / snap) * snap).astype(np.int64) - side // 2
+        window = Box(self.lattice, offset, (side, side, side))
+        whole = np.prod(self.fft_shape(self.box, moving), dtype=np.float64)
+        windowed = np.prod(self.fft_shape(window, moving), dtype=np.float64)
+        return window if windowed < 0.5 * whole else self.box
+
+    def correlate(
+        self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
+        around: ArrayLike | None = None,
+    ) -> Placement:
+        """Voxelise ``moved`` (points of a moving cloud of ``radius``, centroid at
+        ``centre``, metres) on the shared lattice and phase-correlate it with the fixed
+        grid, near ``around`` when given (eq. fourier_shift_solution)."""
+        box = self.moving_box(radius, centre)
+        fixed = self.search_box(radius, around)
+        fft, spectrum = self._fft(fixed, box)
+        buffer = np.zeros(fft.shape, dtype=fft.dtype)
+        splat(moved, box, mode=self.weighting, out=buffer)
+        buffer /= np.linalg.norm(buffer)
+        peak = cross_power_peak(
+            fft.forward(buffer), spectrum, fft, sigma=self.peak_width,
+            positive_below=fixed.shape,
+        )
+        shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
+        return Placement(shift, peak.peak, self._cost(buffer, box))
+
+    def _cost(self, grid: NDArray[np.floating], box: Box) -> float:
+        """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice; ``grid`` is
+        the moving grid on ``box``, possibly zero-padded beyond it."""
+        grid = grid[: box.shape[0], : box.shape[1], : box.shape[2]]
+        q = box.offset - self.box.offset
+        lo, hi = np.maximum(q, 0), np.minimum(q + np.asarray(box.shape), self.box.shape)
+        overlap = 0.0
+        if np.all(hi > lo):
+            g = self._grid[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+            a, b = lo - q, hi - q
+            overlap = float(np.sum(g * grid[a[0] : b[0], a[1] : b[1], a[2] : b[2]]))
+        return 1.0 - overlap  # 1/2 (|g|^2 + |f|^2) - <g, f> with |g| = |f| = 1
+
+    def _block(self, box: Box) -> NDArray[np.float64]:
+        """The unit-norm fixed grid on ``box`` (zero outside the fixed cloud's box)."""
+        if box is self.box:
+            return self._grid
+        out = np.zeros(box.shape)
+        lo = np.maximum(box.offset, self.box.offset)
+        hi = np.minimum(box.offset + box.shape, self.box.offset + self.box.shape)
+        if np.all(hi > lo):
+            a, b = lo - box.offset, hi - box.offset
+            c, d = lo - self.box.offset, hi - self.box.offset
+            out[a[0] : b[0], a[1] : b[1], a[2] : b[2]] = self._grid[
+                c[0] : d[0], c[1] : d[1], c[2] : d[2]
+            ]
+        return out
+
+    def _fft(self, fixed: Box, moving: Box) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
+        """The FFT plan for correlating ``moving`` with ``fixed``, and the fixed block's
+        spectrum (cached: a few blocks and shapes recur over a registration)."""
+        shape = self.fft_shape(fixed, moving)
+        key = (tuple(fixed.offset), fixed.shape, shape)
+        if key not in self._spectra:
+            if len(self._spectra) >= CACHED_SPECTRA:
+                del self._spectra[next(iter(self._spectra))]
+            check_memory(shape, self.max_memory, "voxel grids")
+            fft = fft_plan(shape, precision=PRECISION)
+            padded = np.zeros(shape, dtype=fft.dtype)
+            f = fixed.shape
+            padded[: f[0], : f[1], : f[2]] = self._block(fixed)
+            self._spectra[key] = np.array(fft.forward(padded))
+        return fft_plan(shape, precision=PRECISION), self._spectra[key]
