@@ -45,4 +45,16 @@ __all__ = [
     "MovingCloud",
     "Evaluation",
 ]
-__version__ = "0.1.0"
+
+# Kept at the end, beside the lines that use them (the imports above are the public API).
+import logging as _logging  # noqa: E402
+from importlib import metadata as _metadata  # noqa: E402
+
+try:  # the installed distribution's version, so it cannot drift from pyproject.toml
+    __version__ = _metadata.version("o3d-spectral")
+except _metadata.PackageNotFoundError:  # not installed: a bare source tree on sys.path
+    __version__ = "0+unknown"
+
+# Library convention: the package logs to the "o3d_spectral" logger and prints nothing
+# unless the application configures logging (the CLI does).
+_logging.getLogger(__name__).addHandler(_logging.NullHandler())

@@ -1,8 +1,13 @@
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import open3d as o3d
 
+import o3d_spectral
 from o3d_spectral.cli import main
 from tests.conftest import sample_model
 
@@ -17,18 +22,67 @@ def test_register_prints_matrix_and_json(tmp_path, capsys):
     args = ["register", str(tmp_path / "source.ply"), str(tmp_path / "target.pcd"),
             "--voxel-size", "0.008"]
     assert main(args + ["--json"]) == 0
-    summary = json.loads(capsys.readouterr().out)
+    out, err = capsys.readouterr()
+    summary = json.loads(out)
     np.testing.assert_allclose(np.array(summary["transformation"])[:3, 3], T[:3, 3], atol=2e-3)
     assert summary["fitness"] > 0.99 and summary["converged"]
-    assert main(args) == 0
-    lines = capsys.readouterr().out.splitlines()
+    assert "INFO" not in err  # default level: warnings and errors only
+    assert main(["-v", *args]) == 0  # -v: INFO messages on stderr, stdout unchanged
+    out, err = capsys.readouterr()
+    lines = out.splitlines()
     assert np.loadtxt(lines[:4]).shape == (4, 4) and "fitness" in lines[4]
+    assert "o3d-spectral: INFO: register done in" in err
 
 
 def test_register_reports_bad_input(tmp_path, capsys):
-    assert main(["register", str(tmp_path / "missing.ply"), str(tmp_path / "missing.ply"),
-                 "--voxel-size", "0.008"]) == 2
-    assert "no such file" in capsys.readouterr().err
+    """A failed run exits 1 with one line naming the file; the traceback only with -vv."""
+    missing = tmp_path / "missing.ply"
+    assert main(["register", str(missing), str(missing), "--voxel-size", "0.008"]) == 1
+    assert capsys.readouterr().err == f"o3d-spectral register: error: no such file: {missing}\n"
+    empty = tmp_path / "empty.ply"
+    empty.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
+                     "property float y\nproperty float z\nend_header\n")
+    assert main(["register", str(empty), str(empty), "--voxel-size", "0.008"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error:" in err and str(empty) in err
+    assert main(["-vv", "register", str(empty), str(empty), "--voxel-size", "0.008"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback (most recent call last)" in err
+    assert err.endswith(f"o3d-spectral register: error: {empty}: Open3D read no points from it\n")
+
+
+def test_version_and_usage_errors(capsys):
+    assert main(["--version"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"o3d-spectral {o3d_spectral.__version__}"
+    assert [line.split()[0] for line in lines[1:]] == ["open3d", "numpy", "scipy", "python"]
+    assert lines[1] == f"open3d {o3d.__version__}" and lines[2] == f"numpy {np.__version__}"
+    # argparse's errors, and our own checks of option values before running, exit 2
+    assert main(["register", "--voxel-size", "x"]) == 2
+    assert "usage:" in capsys.readouterr().err
+    assert main(["-v", "-q", "demo"]) == 2
+    assert "not allowed" in capsys.readouterr().err
+    assert main(["demo", "--max-angle", "400"]) == 2
+    assert capsys.readouterr().err == (
+        "o3d-spectral demo: error: --max-angle must be in [0, 180] degrees, got 400.0\n"
+    )
+
+
+def test_library_logs_nothing_unless_configured():
+    """The package logger has a NullHandler: without logging configured, a warning from the
+    library prints nothing (not Python's last-resort stderr output). In a fresh interpreter,
+    since pytest configures logging in this one."""
+    code = (
+        "import logging, o3d_spectral\n"
+        "assert any(isinstance(h, logging.NullHandler)"
+        " for h in logging.getLogger('o3d_spectral').handlers)\n"
+        "logging.getLogger('o3d_spectral.registration').warning('should not be printed')\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "" and done.stderr == ""
 
 
 def test_demo_writes_plot_and_result(tmp_path, capsys):

@@ -150,11 +150,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from o3d_spectral import servo
+    from o3d_spectral.cli import UsageError
 
     if args.trials < 1:
-        raise ValueError(f"--trials must be >= 1, got {args.trials}")
+        raise UsageError(f"--trials must be >= 1, got {args.trials}")
     if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+        raise UsageError(f"--workers must be >= 1, got {args.workers}")
     options = servo.ServoOptions(period=args.period, max_time=args.max_time,
                                  voxel_size=args.voxel_size)
     config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()

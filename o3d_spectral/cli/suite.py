@@ -85,10 +85,11 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
 
 def show_suite_command(args: argparse.Namespace) -> int:
+    from o3d_spectral.cli import UsageError
     from o3d_spectral.suite import load_suite, save_instance_figure
 
     suite = load_suite(args.suite)
     if not 0 <= args.index < len(suite):
-        raise ValueError(f"--index must be in [0, {len(suite) - 1}], got {args.index}")
+        raise UsageError(f"--index must be in [0, {len(suite) - 1}], got {args.index}")
     print(f"wrote {save_instance_figure(suite[args.index], args.out)}")
     return 0
