@@ -23,8 +23,8 @@ import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 
 import o3d_spectral  # noqa: E402
-from o3d_spectral.target_grid import PRECISION  # noqa: E402
 from o3d_spectral import data, fft, so3  # noqa: E402
+from o3d_spectral.target_grid import PRECISION  # noqa: E402
 
 PAPER_MS = 8.7
 

@@ -16,6 +16,9 @@ servoing): :class:`SpectralStepper`. See ``docs/architecture.md`` for the module
 conventions.
 """
 
+import logging as _logging
+from importlib import metadata as _metadata
+
 from .law import IterationRecord
 from .options import (
     CloudOption,
@@ -45,10 +48,6 @@ __all__ = [
     "MovingCloud",
     "Evaluation",
 ]
-
-# Kept at the end, beside the lines that use them (the imports above are the public API).
-import logging as _logging  # noqa: E402
-from importlib import metadata as _metadata  # noqa: E402
 
 try:  # the installed distribution's version, so it cannot drift from pyproject.toml
     __version__ = _metadata.version("o3d-spectral")
