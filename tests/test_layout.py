@@ -1,0 +1,45 @@
+"""The package stays readable in one pass: small modules, short functions (issue 16).
+
+Function length counts code lines, not the docstring: a docstring that teaches is welcome.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "o3d_spectral"
+MODULES = sorted(PACKAGE.rglob("*.py"))
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 60
+
+
+def _code_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    length = node.end_lineno - node.lineno + 1
+    first = node.body[0]
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(
+        first.value.value, str
+    ):
+        length -= first.end_lineno - first.lineno + 1
+    return length
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_modules_and_functions_are_short(path):
+    text = path.read_text()
+    assert len(text.splitlines()) <= MAX_MODULE_LINES
+    long = [
+        f"{node.name} ({_code_lines(node)} lines)"
+        for node in ast.walk(ast.parse(text))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and _code_lines(node) > MAX_FUNCTION_LINES
+    ]
+    assert not long, f"functions over {MAX_FUNCTION_LINES} code lines: {long}"
+
+
+def test_only_the_package_is_importable_from_the_top_level():
+    """``eval`` and ``datasets`` are folders of scripts and data, never modules that
+    would shadow well-known names in a user's environment."""
+    root = PACKAGE.parent
+    assert not (root / "eval" / "__init__.py").exists()
+    assert not (root / "datasets" / "__init__.py").exists()
