@@ -26,7 +26,7 @@ import open3d as o3d
 
 from o3d_spectral import so3
 from o3d_spectral.cloud import point_to_plane_icp
-from o3d_spectral.data import load_model
+from o3d_spectral.synthetic.models import load_model
 
 __all__ = [
     "SYMMETRIC_MODELS",

@@ -5,7 +5,7 @@ import open3d as o3d
 import pytest
 from numpy.testing import assert_allclose
 
-from o3d_spectral.camera import (
+from o3d_spectral.synthetic.camera import (
     CameraIntrinsics,
     DepthNoise,
     hit_labels,
@@ -14,7 +14,7 @@ from o3d_spectral.camera import (
     scan_from_view,
     scan_meshes,
 )
-from o3d_spectral.data import load_model
+from o3d_spectral.synthetic.models import load_model
 
 
 @pytest.fixture(scope="module")

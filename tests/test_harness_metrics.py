@@ -6,7 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import data, so3
+from o3d_spectral import so3
 from o3d_spectral.harness import methods, metrics
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
@@ -15,9 +15,10 @@ from o3d_spectral.harness.metrics import (
     registration_fit,
 )
 from o3d_spectral.harness.runner import task_seed
-from o3d_spectral.scenes import Instance, make_instance
-from o3d_spectral.suite import instance_rng
 from o3d_spectral.symmetry import surface_moments
+from o3d_spectral.synthetic import models
+from o3d_spectral.synthetic.scenes import Instance, make_instance
+from o3d_spectral.synthetic.suite import instance_rng
 
 CENTER = np.array([0.3, -0.2, 0.8])  # the object sits far from the source frame's origin
 
@@ -217,7 +218,7 @@ def test_spectral_variant_reports_its_trajectory(monkeypatch):
 def _turned(instance, axis_index: int, degrees: float) -> np.ndarray:
     """The ground truth followed by a turn about one of the model's principal axes
     through its surface centroid (source frame)."""
-    center, axes = surface_moments(data.load_model(instance.object))
+    center, axes = surface_moments(models.load_model(instance.object))
     M = instance.source_from_model
     axis, point = M[:3, :3] @ axes[:, axis_index], M[:3, :3] @ center + M[:3, 3]
     turn = np.eye(4)

@@ -8,7 +8,7 @@ from pandas.testing import assert_frame_equal
 from o3d_spectral.cli import main
 from o3d_spectral.harness import load_results, method_names, run_eval
 from o3d_spectral.harness.runner import CONFIG_FILE, RESULTS_FILE, TABLE_FILE
-from o3d_spectral.suite import make_suite
+from o3d_spectral.synthetic.suite import make_suite
 
 VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
 

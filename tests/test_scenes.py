@@ -7,9 +7,9 @@ from numpy.testing import assert_allclose
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.camera import CameraIntrinsics, DepthNoise, scan_meshes
-from o3d_spectral.data import load_model
-from o3d_spectral.scenes import (
+from o3d_spectral.synthetic.camera import CameraIntrinsics, DepthNoise, scan_meshes
+from o3d_spectral.synthetic.models import load_model
+from o3d_spectral.synthetic.scenes import (
     CONDITIONS,
     SceneOptions,
     _place_on_table,

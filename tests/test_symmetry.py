@@ -6,7 +6,6 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.data import load_model, model_names
 from o3d_spectral.symmetry import (
     SYMMETRIC_MODELS,
     Symmetry,
@@ -18,6 +17,7 @@ from o3d_spectral.symmetry import (
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.synthetic.models import load_model, model_names
 
 
 def _pose(rotvec, t):

@@ -35,7 +35,8 @@ def _per_iteration(history) -> float:
 
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
-    from o3d_spectral import plots, scenes, symmetry
+    from o3d_spectral import plots, symmetry
+    from o3d_spectral.synthetic import scenes
 
     if not 0 <= args.max_angle <= 180:
         raise ValueError(f"--max-angle must be in [0, 180] degrees, got {args.max_angle}")

@@ -43,7 +43,7 @@ from o3d_spectral.harness.metrics import (
     instance_metrics,
     registration_fit,
 )
-from o3d_spectral.suite import Suite, load_suite
+from o3d_spectral.synthetic.suite import Suite, load_suite
 
 __all__ = [
     "CONFIG_FILE",

@@ -31,7 +31,8 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.camera import (
+from o3d_spectral.symmetry import Symmetry, model_symmetry, surface_moments
+from o3d_spectral.synthetic.camera import (
     CameraIntrinsics,
     DepthNoise,
     RenderedView,
@@ -40,8 +41,7 @@ from o3d_spectral.camera import (
     render,
     scan_from_view,
 )
-from o3d_spectral.data import load_model, model_names
-from o3d_spectral.symmetry import Symmetry, model_symmetry, surface_moments
+from o3d_spectral.synthetic.models import load_model, model_names
 
 __all__ = [
     "CONDITIONS",
@@ -711,7 +711,7 @@ def make_instance(
     condition : {"full", "partial", "occluded", "cluttered"}
         See the module docstring.
     name : str
-        Bundled model name (see :func:`o3d_spectral.data.model_names`).
+        Bundled model name (see :func:`o3d_spectral.synthetic.models.model_names`).
     rng : numpy.random.Generator
         Every random choice is drawn from it, so a seeded generator gives the same instance.
     options : SceneOptions, optional

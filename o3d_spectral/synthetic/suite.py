@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.camera import CameraIntrinsics, DepthNoise
-from o3d_spectral.data import model_names
-from o3d_spectral.scenes import CONDITIONS, Instance, SceneOptions, make_instance
+from o3d_spectral.synthetic.camera import CameraIntrinsics, DepthNoise
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.scenes import CONDITIONS, Instance, SceneOptions, make_instance
 
 __all__ = [
     "MANIFEST",
@@ -108,7 +108,7 @@ def make_suite(
     Parameters
     ----------
     condition : {"full", "partial", "occluded", "cluttered"}
-        See :mod:`o3d_spectral.scenes`.
+        See :mod:`o3d_spectral.synthetic.scenes`.
     n : int
         Number of instances (>= 1).
     seed : int
