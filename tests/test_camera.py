@@ -6,8 +6,6 @@ import pytest
 from numpy.testing import assert_allclose
 
 from o3d_spectral.synthetic.camera import (
-    CameraIntrinsics,
-    DepthNoise,
     hit_labels,
     look_at,
     render,
@@ -15,6 +13,7 @@ from o3d_spectral.synthetic.camera import (
     scan_meshes,
 )
 from o3d_spectral.synthetic.models import load_model
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 
 
 @pytest.fixture(scope="module")

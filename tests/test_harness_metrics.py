@@ -17,7 +17,8 @@ from o3d_spectral.harness.metrics import (
 from o3d_spectral.harness.runner import task_seed
 from o3d_spectral.symmetry import surface_moments
 from o3d_spectral.synthetic import models
-from o3d_spectral.synthetic.scenes import Instance, make_instance
+from o3d_spectral.synthetic.instance import Instance
+from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
 
 CENTER = np.array([0.3, -0.2, 0.8])  # the object sits far from the source frame's origin

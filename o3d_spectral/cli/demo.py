@@ -36,12 +36,13 @@ def _per_iteration(history) -> float:
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
     from o3d_spectral import plots, symmetry
-    from o3d_spectral.synthetic import scenes
+    from o3d_spectral.synthetic.instance import SceneOptions
+    from o3d_spectral.synthetic.scenes import make_instance
 
     if not 0 <= args.max_angle <= 180:
         raise ValueError(f"--max-angle must be in [0, 180] degrees, got {args.max_angle}")
-    options = scenes.SceneOptions(angle_range=(0.0, np.deg2rad(args.max_angle)), max_offset=0.05)
-    instance = scenes.make_instance(
+    options = SceneOptions(angle_range=(0.0, np.deg2rad(args.max_angle)), max_offset=0.05)
+    instance = make_instance(
         "partial", args.object, rng=np.random.default_rng(args.seed), options=options
     )
     result = o3d_spectral.registration_spectral(instance.source, instance.target, args.voxel_size)

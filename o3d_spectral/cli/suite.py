@@ -65,7 +65,7 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from o3d_spectral.synthetic.scenes import SceneOptions
+    from o3d_spectral.synthetic.instance import SceneOptions
     from o3d_spectral.synthetic.suite import make_suite
 
     angle_range = None if args.angle_range is None else tuple(np.deg2rad(args.angle_range))

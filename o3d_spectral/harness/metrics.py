@@ -22,7 +22,7 @@ from o3d_spectral.symmetry import (
     translation_error,
 )
 from o3d_spectral.synthetic import models
-from o3d_spectral.synthetic.scenes import Instance
+from o3d_spectral.synthetic.instance import Instance
 
 __all__ = [
     "OBSERVATION_TOLERANCE",

@@ -17,9 +17,11 @@ import open3d as o3d
 from numpy.typing import NDArray
 
 from .. import so3
-from ..synthetic.camera import CameraIntrinsics, DepthNoise, look_at, scan_meshes
+from ..synthetic.camera import look_at, scan_meshes
 from ..synthetic.models import model_names
-from ..synthetic.scenes import sample_surface, table_mesh, tabletop
+from ..synthetic.sampling import sample_surface
+from ..synthetic.sensor import CameraIntrinsics, DepthNoise
+from ..synthetic.tabletop import table_mesh, tabletop
 from .robot import Arm
 
 __all__ = [

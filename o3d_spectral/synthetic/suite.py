@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.synthetic.camera import CameraIntrinsics, DepthNoise
+from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.models import model_names
-from o3d_spectral.synthetic.scenes import CONDITIONS, Instance, SceneOptions, make_instance
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 
 __all__ = [
     "MANIFEST",
