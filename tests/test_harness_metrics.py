@@ -15,7 +15,7 @@ from o3d_spectral.harness.metrics import (
     registration_fit,
 )
 from o3d_spectral.harness.runner import task_seed
-from o3d_spectral.symmetry import surface_moments
+from o3d_spectral.harness.symmetry import surface_moments
 from o3d_spectral.synthetic import models
 from o3d_spectral.synthetic.instance import Instance
 from o3d_spectral.synthetic.scenes import make_instance

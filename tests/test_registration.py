@@ -6,7 +6,7 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral import so3
-from o3d_spectral.symmetry import (
+from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,

@@ -35,7 +35,8 @@ def _per_iteration(history) -> float:
 
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
-    from o3d_spectral import plots, symmetry
+    from o3d_spectral import plots
+    from o3d_spectral.harness import errors
     from o3d_spectral.synthetic.instance import SceneOptions
     from o3d_spectral.synthetic.scenes import make_instance
 
@@ -48,12 +49,12 @@ def run(args: argparse.Namespace) -> int:
     result = o3d_spectral.registration_spectral(instance.source, instance.target, args.voxel_size)
     T_gt, T, center = instance.T_gt, result.transformation, instance.source_center
     errors = {  # translation errors at the object's centroid
-        "rotation_error_deg": symmetry.rotation_error(T, T_gt),
-        "translation_error_m": symmetry.translation_error(T, T_gt, center=center),
-        "symmetric_rotation_error_deg": symmetry.symmetric_rotation_error(
+        "rotation_error_deg": errors.rotation_error(T, T_gt),
+        "translation_error_m": errors.translation_error(T, T_gt, center=center),
+        "symmetric_rotation_error_deg": errors.symmetric_rotation_error(
             T, T_gt, instance.symmetry
         ),
-        "symmetric_translation_error_m": symmetry.symmetric_translation_error(
+        "symmetric_translation_error_m": errors.symmetric_translation_error(
             T, T_gt, instance.symmetry, center=center
         ),
     }

@@ -1,4 +1,4 @@
-"""Per-instance metrics of the evaluation harness, built on :mod:`o3d_spectral.symmetry`.
+"""Per-instance metrics of the evaluation harness, built on :mod:`o3d_spectral.harness.errors`.
 
 Translation errors are measured at the source's centroid (``Instance.source_center``):
 where the estimate and the ground truth put the object, not the source frame's origin,
@@ -15,7 +15,7 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from o3d_spectral.symmetry import (
+from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,

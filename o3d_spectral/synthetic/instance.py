@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.symmetry import Symmetry, model_symmetry
+from o3d_spectral.harness.symmetry import Symmetry, model_symmetry
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 
@@ -129,7 +129,7 @@ class Instance:
     @property
     def source_center(self) -> np.ndarray:
         """Centroid of the source points (m), shape (3,): where translation errors are
-        measured (:func:`o3d_spectral.symmetry.translation_error`'s ``center``)."""
+        measured (:func:`o3d_spectral.harness.errors.translation_error`'s ``center``)."""
         return np.asarray(self.source.points).mean(axis=0)
 
     @property

@@ -10,7 +10,7 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.symmetry import surface_moments
+from o3d_spectral.harness.symmetry import surface_moments
 from o3d_spectral.synthetic.instance import MAX_TRIES
 from o3d_spectral.synthetic.sampling import model_mesh, moved, rigid
 
