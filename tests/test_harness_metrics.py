@@ -198,6 +198,31 @@ def test_register_method_adds_one_and_rejects_clashes(monkeypatch):
         methods.register_method("not a name")
 
 
+def test_methods_keep_their_settings(monkeypatch):
+    monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
+
+    @methods.register_method("fixed", settings={"radius": np.float64(0.5), "sizes": (1, 2)})
+    def fixed(source, target, voxel_size, seed):
+        return np.eye(4), {}
+
+    assert methods.method_settings("fixed") == {"radius": 0.5, "sizes": [1, 2]}
+    methods.method_settings("fixed")["radius"] = 9.0  # a copy: the registry keeps its own
+    assert methods.method_settings("fixed")["radius"] == 0.5
+    methods.register_method("bare")(fixed)
+    assert methods.method_settings("bare") == {}
+    with pytest.raises(TypeError, match="JSON"):
+        methods.register_method("odd", settings={"f": fixed})
+    with pytest.raises(ValueError, match="fpfh_ransac"):
+        methods.method_settings("teaser")
+    icp = methods.method_settings("icp_point_to_plane")
+    assert icp["max_correspondence_distance_voxels"] == methods.ICP_DISTANCE_VOXELS
+    assert icp["criteria"]["max_iteration"] == methods.ICP_MAX_ITERATION
+    assert methods.method_settings("fpfh_ransac")["ransac"]["confidence"] == 0.999
+    spectral = methods.method_settings("spectral")
+    assert set(spectral) == {"option", "criteria"}
+    assert spectral["criteria"]["max_iteration"] > 0
+
+
 def test_spectral_variant_reports_its_trajectory(monkeypatch):
     monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
     from o3d_spectral import SpectralConvergenceCriteria
