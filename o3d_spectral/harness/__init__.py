@@ -2,10 +2,13 @@
 
 * :mod:`~o3d_spectral.harness.symmetry`: symmetry groups of the bundled models;
 * :mod:`~o3d_spectral.harness.errors`: pose errors, plain and symmetry-aware;
-* :mod:`~o3d_spectral.harness.methods`: the methods, registered by name;
+* :mod:`~o3d_spectral.harness.methods`: the methods, registered by name with their settings;
 * :mod:`~o3d_spectral.harness.metrics`: per-instance errors and success;
 * :mod:`~o3d_spectral.harness.runner`: the resumable evaluation loop (``o3d-spectral eval``);
-* :mod:`~o3d_spectral.harness.report`: tables and plots (``o3d-spectral report``).
+* :mod:`~o3d_spectral.harness.records`: what a run folder holds (config, results);
+* :mod:`~o3d_spectral.harness.tables`, :mod:`~o3d_spectral.harness.writers`,
+  :mod:`~o3d_spectral.harness.figures`: result tables, their Markdown and LaTeX, plots;
+* :mod:`~o3d_spectral.harness.report`: the report of a run (``o3d-spectral report``).
 
 The loop, tables and plots need the ``harness`` extra (pandas, matplotlib, tqdm):
 ``pip install 'o3d-spectral[harness]'``. The names below are imported from their modules on
@@ -23,6 +26,7 @@ __all__ = [
     "instance_metrics",
     "load_results",
     "method_names",
+    "method_settings",
     "model_symmetry",
     "register_method",
     "register_spectral_variant",
@@ -43,8 +47,9 @@ __getattr__ = lazy_attributes(
         "convergence_curves": "metrics",
         "get_method": "methods",
         "instance_metrics": "metrics",
-        "load_results": "runner",
+        "load_results": "records",
         "method_names": "methods",
+        "method_settings": "methods",
         "model_symmetry": "symmetry",
         "register_method": "methods",
         "register_spectral_variant": "methods",
