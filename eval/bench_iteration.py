@@ -23,7 +23,8 @@ import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 
 import o3d_spectral  # noqa: E402
-from o3d_spectral import data, fft, so3  # noqa: E402
+from o3d_spectral import fft, so3  # noqa: E402
+from o3d_spectral.synthetic import models  # noqa: E402
 from o3d_spectral.target_grid import PRECISION  # noqa: E402
 
 PAPER_MS = 8.7
@@ -48,7 +49,7 @@ def main() -> None:
     args = parser.parse_args()
 
     o3d.utility.random.seed(0)
-    source = data.load_model(args.object).sample_points_uniformly(20000, use_triangle_normal=True)
+    source = models.load_model(args.object).sample_points_uniformly(20000, use_triangle_normal=True)
     T = np.eye(4)
     T[:3, :3] = so3.exp([0.3, -0.2, 0.4])
     T[:3, 3] = [0.03, -0.02, 0.01]

@@ -18,15 +18,16 @@ import numpy as np
 import open3d as o3d
 
 import o3d_spectral
-from o3d_spectral import data, so3
-from o3d_spectral.symmetry import rotation_error, translation_error
+from o3d_spectral import so3
+from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.synthetic import models
 
 OBJECTS = ("mustard_bottle", "power_drill", "mug", "cracker_box", "banana", "scissors")
 
 
 def sample(name: str, seed: int) -> o3d.geometry.PointCloud:
     o3d.utility.random.seed(seed)
-    return data.load_model(name).sample_points_uniformly(20000, use_triangle_normal=True)
+    return models.load_model(name).sample_points_uniformly(20000, use_triangle_normal=True)
 
 
 def motion(rng: np.random.Generator) -> np.ndarray:

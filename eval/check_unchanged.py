@@ -23,7 +23,7 @@ import numpy as np
 import open3d as o3d
 
 import o3d_spectral
-from o3d_spectral.suite import load_suite
+from o3d_spectral.synthetic.suite import load_suite
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 VOXEL_SIZE = 0.008

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from o3d_spectral.cli import main as cli
 from o3d_spectral.harness.report import make_report
-from o3d_spectral.suite import MANIFEST, load_suite, make_suite
+from o3d_spectral.synthetic.suite import MANIFEST, load_suite, make_suite
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 BEGIN, END = "<!-- BEGIN GENERATED", "<!-- END GENERATED -->"

@@ -6,7 +6,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral import data
+from o3d_spectral.synthetic import models
 
 
 @pytest.fixture
@@ -17,7 +17,7 @@ def rng() -> np.random.Generator:
 def sample_model(name: str, n: int = 20000, seed: int = 0) -> o3d.geometry.PointCloud:
     """Points sampled uniformly on a bundled mesh, with outward triangle normals."""
     o3d.utility.random.seed(seed)
-    return data.load_model(name).sample_points_uniformly(n, use_triangle_normal=True)
+    return models.load_model(name).sample_points_uniformly(n, use_triangle_normal=True)
 
 
 def band_limited(bandwidth: int, rng: np.random.Generator) -> np.ndarray:

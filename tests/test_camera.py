@@ -5,16 +5,15 @@ import open3d as o3d
 import pytest
 from numpy.testing import assert_allclose
 
-from o3d_spectral.camera import (
-    CameraIntrinsics,
-    DepthNoise,
+from o3d_spectral.synthetic.camera import (
     hit_labels,
     look_at,
     render,
     scan_from_view,
     scan_meshes,
 )
-from o3d_spectral.data import load_model
+from o3d_spectral.synthetic.models import load_model
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 
 
 @pytest.fixture(scope="module")

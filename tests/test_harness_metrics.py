@@ -6,7 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import data, so3
+from o3d_spectral import so3
 from o3d_spectral.harness import methods, metrics
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
@@ -15,9 +15,11 @@ from o3d_spectral.harness.metrics import (
     registration_fit,
 )
 from o3d_spectral.harness.runner import task_seed
-from o3d_spectral.scenes import Instance, make_instance
-from o3d_spectral.suite import instance_rng
-from o3d_spectral.symmetry import surface_moments
+from o3d_spectral.harness.symmetry import surface_moments
+from o3d_spectral.synthetic import models
+from o3d_spectral.synthetic.instance import Instance
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
 
 CENTER = np.array([0.3, -0.2, 0.8])  # the object sits far from the source frame's origin
 
@@ -196,6 +198,31 @@ def test_register_method_adds_one_and_rejects_clashes(monkeypatch):
         methods.register_method("not a name")
 
 
+def test_methods_keep_their_settings(monkeypatch):
+    monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
+
+    @methods.register_method("fixed", settings={"radius": np.float64(0.5), "sizes": (1, 2)})
+    def fixed(source, target, voxel_size, seed):
+        return np.eye(4), {}
+
+    assert methods.method_settings("fixed") == {"radius": 0.5, "sizes": [1, 2]}
+    methods.method_settings("fixed")["radius"] = 9.0  # a copy: the registry keeps its own
+    assert methods.method_settings("fixed")["radius"] == 0.5
+    methods.register_method("bare")(fixed)
+    assert methods.method_settings("bare") == {}
+    with pytest.raises(TypeError, match="JSON"):
+        methods.register_method("odd", settings={"f": fixed})
+    with pytest.raises(ValueError, match="fpfh_ransac"):
+        methods.method_settings("teaser")
+    icp = methods.method_settings("icp_point_to_plane")
+    assert icp["max_correspondence_distance_voxels"] == methods.ICP_DISTANCE_VOXELS
+    assert icp["criteria"]["max_iteration"] == methods.ICP_MAX_ITERATION
+    assert methods.method_settings("fpfh_ransac")["ransac"]["confidence"] == 0.999
+    spectral = methods.method_settings("spectral")
+    assert set(spectral) == {"option", "criteria"}
+    assert spectral["criteria"]["max_iteration"] > 0
+
+
 def test_spectral_variant_reports_its_trajectory(monkeypatch):
     monkeypatch.setattr(methods, "_REGISTRY", dict(methods._REGISTRY))
     from o3d_spectral import SpectralConvergenceCriteria
@@ -217,7 +244,7 @@ def test_spectral_variant_reports_its_trajectory(monkeypatch):
 def _turned(instance, axis_index: int, degrees: float) -> np.ndarray:
     """The ground truth followed by a turn about one of the model's principal axes
     through its surface centroid (source frame)."""
-    center, axes = surface_moments(data.load_model(instance.object))
+    center, axes = surface_moments(models.load_model(instance.object))
     M = instance.source_from_model
     axis, point = M[:3, :3] @ axes[:, axis_index], M[:3, :3] @ center + M[:3, 3]
     turn = np.eye(4)

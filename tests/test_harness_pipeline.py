@@ -6,9 +6,9 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from o3d_spectral.cli import main
-from o3d_spectral.harness import load_results, method_names, run_eval
-from o3d_spectral.harness.runner import CONFIG_FILE, RESULTS_FILE, TABLE_FILE
-from o3d_spectral.suite import make_suite
+from o3d_spectral.harness import load_results, method_names, method_settings, run_eval
+from o3d_spectral.harness.records import CONFIG_FILE, RESULTS_FILE, TABLE_FILE
+from o3d_spectral.synthetic.suite import make_suite
 
 VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
 
@@ -63,6 +63,28 @@ def test_eval_writes_one_row_per_instance_and_method(run_dir):
     assert spectral["rotation_gradient_norm_rad"].notna().all()
     config = json.loads((run_dir / CONFIG_FILE).read_text())
     assert config["sessions"][0]["registrations"] == len(frame)
+
+
+def test_config_records_the_commit_versions_and_method_settings(suite_dir, tmp_path):
+    chosen = ["icp_point_to_point", "fgr"]
+    run_eval([suite_dir], tmp_path, methods=chosen, limit=1, progress=False)
+    run_eval([suite_dir], tmp_path, methods=["fpfh_ransac"], limit=1, progress=False)
+    sessions = json.loads((tmp_path / CONFIG_FILE).read_text())["sessions"]
+    assert len(sessions) == 2
+    for session, methods in zip(sessions, [chosen, ["fpfh_ransac"]], strict=True):
+        assert "commit" in session
+        assert session["commit"] is None or len(session["commit"]) == 40
+        assert set(session["versions"]) == {
+            "o3d_spectral",
+            "open3d",
+            "numpy",
+            "scipy",
+            "pyfftw",
+            "python",
+        }
+        assert all(isinstance(v, str) for v in session["versions"].values())
+        assert session["method_settings"] == {m: method_settings(m) for m in methods}
+    assert sessions[0]["method_settings"]["fgr"]["fgr"]["maximum_correspondence_distance_voxels"]
 
 
 def test_report_writes_every_table_and_plot(run_dir, tmp_path):

@@ -6,14 +6,14 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral import so3
-from o3d_spectral.scenes import make_instance
-from o3d_spectral.suite import instance_rng
-from o3d_spectral.symmetry import (
+from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
 from tests.conftest import sample_model
 
 VOXEL = 0.008

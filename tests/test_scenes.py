@@ -7,15 +7,13 @@ from numpy.testing import assert_allclose
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.camera import CameraIntrinsics, DepthNoise, scan_meshes
-from o3d_spectral.data import load_model
-from o3d_spectral.scenes import (
-    CONDITIONS,
-    SceneOptions,
-    _place_on_table,
-    make_instance,
-    model_cloud,
-)
+from o3d_spectral.synthetic.camera import scan_meshes
+from o3d_spectral.synthetic.instance import CONDITIONS, SceneOptions
+from o3d_spectral.synthetic.models import load_model
+from o3d_spectral.synthetic.sampling import model_cloud
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
+from o3d_spectral.synthetic.tabletop import _place_on_table
 
 
 def _distance_to_mesh(mesh, pose, points):

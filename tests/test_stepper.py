@@ -83,10 +83,10 @@ def test_visible_correlation_ranks_the_rotation_of_a_view_first():
     """Instance 21 of the partial suite (seed 0), a power drill seen from one side: the
     whole model's EGI correlation puts the right rotation 7th among its peaks; weighted
     and normalised as the sensor sees it (``search_visibility``), it is the first."""
-    from o3d_spectral.scenes import make_instance
+    from o3d_spectral.harness.errors import symmetric_rotation_error
     from o3d_spectral.so3fft import peaks
-    from o3d_spectral.suite import instance_rng
-    from o3d_spectral.symmetry import symmetric_rotation_error
+    from o3d_spectral.synthetic.scenes import make_instance
+    from o3d_spectral.synthetic.suite import instance_rng
 
     instance = make_instance("partial", "power_drill", rng=instance_rng(0, 21))
     ranks = {}

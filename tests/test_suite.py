@@ -8,8 +8,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from o3d_spectral.cli import suite as cli_suite
-from o3d_spectral.data import model_names
-from o3d_spectral.suite import MANIFEST, load_suite, make_suite, save_instance_figure
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.suite import MANIFEST, load_suite, make_suite, save_instance_figure
 
 
 def _files(folder):
@@ -47,8 +47,8 @@ def test_manifest_lists_every_instance(occluded_suite):
 
 
 def test_loaded_instances_match_the_generated_ones(occluded_suite):
-    from o3d_spectral.scenes import make_instance
-    from o3d_spectral.suite import instance_rng
+    from o3d_spectral.synthetic.scenes import make_instance
+    from o3d_spectral.synthetic.suite import instance_rng
 
     suite = load_suite(occluded_suite)
     assert len(suite) == 3 and suite.condition == "occluded"

@@ -6,18 +6,20 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.data import load_model, model_names
-from o3d_spectral.symmetry import (
-    SYMMETRIC_MODELS,
-    Symmetry,
-    model_symmetry,
+from o3d_spectral.harness.errors import (
     mssd,
-    refine_axis,
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.harness.symmetry import (
+    SYMMETRIC_MODELS,
+    Symmetry,
+    model_symmetry,
+    refine_axis,
+)
+from o3d_spectral.synthetic.models import load_model, model_names
 
 
 def _pose(rotvec, t):

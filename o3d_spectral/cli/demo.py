@@ -35,24 +35,27 @@ def _per_iteration(history) -> float:
 
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
-    from o3d_spectral import plots, scenes, symmetry
+    from o3d_spectral import plots
     from o3d_spectral.cli import UsageError
+    from o3d_spectral.harness import errors
+    from o3d_spectral.synthetic.instance import SceneOptions
+    from o3d_spectral.synthetic.scenes import make_instance
 
     if not 0 <= args.max_angle <= 180:
         raise UsageError(f"--max-angle must be in [0, 180] degrees, got {args.max_angle}")
-    options = scenes.SceneOptions(angle_range=(0.0, np.deg2rad(args.max_angle)), max_offset=0.05)
-    instance = scenes.make_instance(
+    options = SceneOptions(angle_range=(0.0, np.deg2rad(args.max_angle)), max_offset=0.05)
+    instance = make_instance(
         "partial", args.object, rng=np.random.default_rng(args.seed), options=options
     )
     result = o3d_spectral.registration_spectral(instance.source, instance.target, args.voxel_size)
     T_gt, T, center = instance.T_gt, result.transformation, instance.source_center
     errors = {  # translation errors at the object's centroid
-        "rotation_error_deg": symmetry.rotation_error(T, T_gt),
-        "translation_error_m": symmetry.translation_error(T, T_gt, center=center),
-        "symmetric_rotation_error_deg": symmetry.symmetric_rotation_error(
+        "rotation_error_deg": errors.rotation_error(T, T_gt),
+        "translation_error_m": errors.translation_error(T, T_gt, center=center),
+        "symmetric_rotation_error_deg": errors.symmetric_rotation_error(
             T, T_gt, instance.symmetry
         ),
-        "symmetric_translation_error_m": symmetry.symmetric_translation_error(
+        "symmetric_translation_error_m": errors.symmetric_translation_error(
             T, T_gt, instance.symmetry, center=center
         ),
     }

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-CONDITIONS = ("full", "partial", "occluded", "cluttered")  # as o3d_spectral.scenes, kept light
+# As o3d_spectral.synthetic.scenes.CONDITIONS, written out so that --help stays light.
+CONDITIONS = ("full", "partial", "occluded", "cluttered")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -64,8 +65,8 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from o3d_spectral.scenes import SceneOptions
-    from o3d_spectral.suite import make_suite
+    from o3d_spectral.synthetic.instance import SceneOptions
+    from o3d_spectral.synthetic.suite import make_suite
 
     angle_range = None if args.angle_range is None else tuple(np.deg2rad(args.angle_range))
     options = SceneOptions(angle_range=angle_range, max_offset=args.max_offset)
@@ -86,7 +87,7 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
 def show_suite_command(args: argparse.Namespace) -> int:
     from o3d_spectral.cli import UsageError
-    from o3d_spectral.suite import load_suite, save_instance_figure
+    from o3d_spectral.synthetic.suite import load_suite, save_instance_figure
 
     suite = load_suite(args.suite)
     if not 0 <= args.index < len(suite):

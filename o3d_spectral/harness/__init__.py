@@ -1,27 +1,64 @@
-"""Evaluation harness: spectral registration against Open3D's ICP, FPFH-RANSAC and FGR.
+"""Evaluation: spectral registration against Open3D's ICP, FPFH-RANSAC and FGR.
 
-* :mod:`~o3d_spectral.harness.methods`: the methods, registered by name;
+* :mod:`~o3d_spectral.harness.symmetry`: symmetry groups of the bundled models;
+* :mod:`~o3d_spectral.harness.errors`: pose errors, plain and symmetry-aware;
+* :mod:`~o3d_spectral.harness.methods`: the methods, registered by name with their settings;
 * :mod:`~o3d_spectral.harness.metrics`: per-instance errors and success;
 * :mod:`~o3d_spectral.harness.runner`: the resumable evaluation loop (``o3d-spectral eval``);
-* :mod:`~o3d_spectral.harness.report`: tables and plots (``o3d-spectral report``).
+* :mod:`~o3d_spectral.harness.records`: what a run folder holds (config, results);
+* :mod:`~o3d_spectral.harness.tables`, :mod:`~o3d_spectral.harness.writers`,
+  :mod:`~o3d_spectral.harness.figures`: result tables, their Markdown and LaTeX, plots;
+* :mod:`~o3d_spectral.harness.report`: the report of a run (``o3d-spectral report``).
 
-Needs the ``harness`` extra (pandas, matplotlib, tqdm): ``pip install 'o3d-spectral[harness]'``.
+The loop, tables and plots need the ``harness`` extra (pandas, matplotlib, tqdm):
+``pip install 'o3d-spectral[harness]'``. The names below are imported from their modules on
+first access, so that importing one module (the scene generator imports
+:mod:`~o3d_spectral.harness.symmetry`) does not import them all.
 """
 
-from .methods import get_method, method_names, register_method, register_spectral_variant
-from .metrics import SuccessCriteria, convergence_curves, instance_metrics, registration_fit
-from .runner import load_results, run_eval, task_seed
+from o3d_spectral._lazy import lazy_attributes
 
 __all__ = [
     "SuccessCriteria",
+    "Symmetry",
     "convergence_curves",
     "get_method",
     "instance_metrics",
     "load_results",
     "method_names",
+    "method_settings",
+    "model_symmetry",
     "register_method",
     "register_spectral_variant",
     "registration_fit",
+    "rotation_error",
     "run_eval",
+    "symmetric_rotation_error",
+    "symmetric_translation_error",
     "task_seed",
+    "translation_error",
 ]
+
+__getattr__ = lazy_attributes(
+    __name__,
+    {
+        "SuccessCriteria": "metrics",
+        "Symmetry": "symmetry",
+        "convergence_curves": "metrics",
+        "get_method": "methods",
+        "instance_metrics": "metrics",
+        "load_results": "records",
+        "method_names": "methods",
+        "method_settings": "methods",
+        "model_symmetry": "symmetry",
+        "register_method": "methods",
+        "register_spectral_variant": "methods",
+        "registration_fit": "metrics",
+        "rotation_error": "errors",
+        "run_eval": "runner",
+        "symmetric_rotation_error": "errors",
+        "symmetric_translation_error": "errors",
+        "task_seed": "runner",
+        "translation_error": "errors",
+    },
+)

@@ -11,17 +11,22 @@ info)``:
 
 A new method is one decorated function::
 
-    @register_method("my_method")
+    @register_method("my_method", settings={"max_iteration": 50})
     def my_method(source, target, voxel_size, seed):
         ...
         return transformation, {"iterations": 12}
 
-and a new spectral variant one call to :func:`register_spectral_variant`.
+and a new spectral variant one call to :func:`register_spectral_variant`. ``settings``
+describes the method's fixed parameters (distances in voxels); every run records them
+(:func:`method_settings`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import open3d as o3d
@@ -29,17 +34,20 @@ import open3d as o3d
 from o3d_spectral import (
     CloudOption,
     GlobalSearchOption,
+    SpectralConvergenceCriteria,
     SpectralRegistrationOption,
     registration_spectral,
     registration_spectral_global,
 )
-from o3d_spectral.refinement import point_to_plane_refinement
+from o3d_spectral.refinement import TUTORIAL_DISTANCE, point_to_plane_refinement
+from o3d_spectral.registration import DEFAULT_REFINEMENT
 
 __all__ = [
     "INFO_KEYS",
     "Method",
     "get_method",
     "method_names",
+    "method_settings",
     "register_method",
     "register_spectral_variant",
 ]
@@ -60,7 +68,14 @@ INFO_KEYS = (
     "trajectory",
 )
 
-_REGISTRY: dict[str, Method] = {}
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    method: Method
+    settings: str  # JSON text, so that no caller can change the stored settings
+
+
+_REGISTRY: dict[str, _Entry] = {}
 
 _reg = o3d.pipelines.registration
 
@@ -70,34 +85,62 @@ ICP_DISTANCE_VOXELS = 5.0
 ICP_MAX_ITERATION = 100
 
 
-def register_method(name: str) -> Callable[[Method], Method]:
+def _json_value(value: Any) -> Any:
+    """NumPy arrays and scalars as JSON values (``json.dumps``' ``default``)."""
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON-able: {value!r}")
+
+
+def register_method(name: str, *, settings: dict | None = None) -> Callable[[Method], Method]:
     """Decorator registering a method under ``name`` (see the module docstring).
+
+    Parameters
+    ----------
+    name : str
+        An identifier not registered yet.
+    settings : dict, optional
+        The method's fixed parameters, JSON-able (NumPy values are turned into lists and
+        numbers); recorded in every run's ``config.json``. Empty when omitted.
 
     Raises
     ------
     ValueError
         If ``name`` is empty or already registered.
+    TypeError
+        If ``settings`` is not JSON-able.
     """
     if not name or not name.isidentifier():
         raise ValueError(f"name must be a non-empty identifier, got {name!r}")
     if name in _REGISTRY:
         raise ValueError(f"name {name!r} is already registered; pick another one")
+    text = json.dumps({} if settings is None else settings, default=_json_value)
 
     def decorate(method: Method) -> Method:
-        _REGISTRY[name] = method
+        _REGISTRY[name] = _Entry(method, text)
         return method
 
     return decorate
 
 
-def get_method(name: str) -> Method:
-    """The method registered under ``name``; ``ValueError`` listing the names if unknown."""
+def _entry(name: str) -> _Entry:
     try:
         return _REGISTRY[name]
     except KeyError:
         raise ValueError(
             f"method {name!r} is not registered; choose from {', '.join(method_names())}"
         ) from None
+
+
+def get_method(name: str) -> Method:
+    """The method registered under ``name``; ``ValueError`` listing the names if unknown."""
+    return _entry(name).method
+
+
+def method_settings(name: str) -> dict:
+    """The settings the method ``name`` was registered with (a new copy, JSON values);
+    ``ValueError`` listing the names if unknown."""
+    return json.loads(_entry(name).settings)
 
 
 def method_names() -> tuple[str, ...]:
@@ -130,7 +173,24 @@ def register_spectral_variant(name: str, *, global_search: bool = False, **setti
 
     described = ", ".join(f"{key}={value!r}" for key, value in settings.items())
     spectral.__doc__ = f"{call.__name__} with {described or 'its defaults'}."
-    return register_method(name)(spectral)
+    return register_method(name, settings=_spectral_settings(call, settings))(spectral)
+
+
+def _spectral_settings(call: Callable, settings: dict) -> dict:
+    """Every setting a spectral call runs with, as JSON-able dicts: the given ones and
+    the defaults of those not given (``refinement`` None when switched off)."""
+    defaults = {
+        "option": SpectralRegistrationOption(),
+        "criteria": SpectralConvergenceCriteria(),
+        "cloud": CloudOption(),
+        "refinement": DEFAULT_REFINEMENT,
+    }
+    if call is registration_spectral_global:
+        defaults["search"] = GlobalSearchOption()
+    chosen = {**defaults, **settings}
+    return {"call": call.__name__} | {
+        key: None if value is None else dataclasses.asdict(value) for key, value in chosen.items()
+    }
 
 
 register_spectral_variant("spectral")
@@ -146,6 +206,70 @@ register_spectral_variant(  # the search without search_visibility and focus_pla
     "spectral_global_whole_egi",
     global_search=True,
     search=GlobalSearchOption(search_visibility=False, focus_places=1),
+)
+
+
+def _open3d_fields(options, names: tuple[str, ...]) -> dict:
+    """The named attributes of an Open3D options object, as a dict."""
+    return {name: getattr(options, name) for name in names}
+
+
+#: The ICP baselines' settings (distances in voxels).
+_ICP_SETTINGS = {
+    "init": "identity",
+    "down_sample_voxels": 1.0,
+    "max_correspondence_distance_voxels": ICP_DISTANCE_VOXELS,
+    "criteria": _open3d_fields(
+        _reg.ICPConvergenceCriteria(max_iteration=ICP_MAX_ITERATION),
+        ("max_iteration", "relative_fitness", "relative_rmse"),
+    ),
+}
+
+#: The global-registration tutorial's FPFH features (sizes in voxels).
+_FPFH = {
+    "down_sample_voxels": 1.0,
+    "normal_radius_voxels": 2.0,
+    "normal_max_nn": 30,
+    "feature_radius_voxels": 5.0,
+    "feature_max_nn": 100,
+}
+
+#: The tutorial's refinement after a global registration, on the full clouds
+#: (:func:`o3d_spectral.registration.point_to_plane_refinement`).
+_REFINEMENT = {
+    "estimation": "point_to_plane",
+    "max_correspondence_distance_voxels": TUTORIAL_DISTANCE,
+    "criteria": _open3d_fields(
+        _reg.ICPConvergenceCriteria(), ("max_iteration", "relative_fitness", "relative_rmse")
+    ),
+}
+
+#: FPFH-RANSAC's matching (the tutorial's; distances in voxels).
+_RANSAC = {
+    "mutual_filter": True,
+    "max_correspondence_distance_voxels": 1.5,
+    "estimation": "point_to_point",
+    "with_scaling": False,
+    "ransac_n": 3,
+    "edge_length_checker": 0.9,
+    "distance_checker_voxels": 1.5,
+    "max_iteration": 100000,
+    "confidence": 0.999,
+}
+
+#: FGR's options: the correspondence distance in voxels, Open3D's defaults for the rest.
+_FGR_DISTANCE_VOXELS = 0.5
+_FGR = {"maximum_correspondence_distance_voxels": _FGR_DISTANCE_VOXELS} | _open3d_fields(
+    _reg.FastGlobalRegistrationOption(),
+    (
+        "decrease_mu",
+        "division_factor",
+        "iteration_number",
+        "maximum_tuple_count",
+        "tuple_scale",
+        "tuple_test",
+        "use_absolute_scale",
+    ),
 )
 
 
@@ -168,7 +292,7 @@ def _icp_from_identity(source, target, voxel_size: float, estimation) -> tuple[n
     return np.asarray(result.transformation), {}
 
 
-@register_method("icp_point_to_point")
+@register_method("icp_point_to_point", settings={"estimation": "point_to_point", **_ICP_SETTINGS})
 def icp_point_to_point(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D point-to-point ICP from the identity on clouds down-sampled at the voxel size."""
     return _icp_from_identity(
@@ -176,7 +300,7 @@ def icp_point_to_point(source, target, voxel_size: float, seed: int) -> tuple[np
     )
 
 
-@register_method("icp_point_to_plane")
+@register_method("icp_point_to_plane", settings={"estimation": "point_to_plane", **_ICP_SETTINGS})
 def icp_point_to_plane(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D point-to-plane ICP from the identity (the clouds' own normals)."""
     return _icp_from_identity(
@@ -188,9 +312,16 @@ def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float):
     """The global-registration tutorial's features: down-sample at ``v``, normals with
     radius ``2v``, FPFH with radius ``5v``."""
     down = cloud.voxel_down_sample(voxel_size)
-    down.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * voxel_size, max_nn=30))
+    down.estimate_normals(
+        o3d.geometry.KDTreeSearchParamHybrid(
+            radius=_FPFH["normal_radius_voxels"] * voxel_size, max_nn=_FPFH["normal_max_nn"]
+        )
+    )
     feature = _reg.compute_fpfh_feature(
-        down, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel_size, max_nn=100)
+        down,
+        o3d.geometry.KDTreeSearchParamHybrid(
+            radius=_FPFH["feature_radius_voxels"] * voxel_size, max_nn=_FPFH["feature_max_nn"]
+        ),
     )
     return down, feature
 
@@ -208,17 +339,19 @@ def _global_then_refine(source, target, voxel_size: float, seed: int, match) -> 
     return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
 
 
-@register_method("fpfh_ransac")
+@register_method(
+    "fpfh_ransac", settings={"features": _FPFH, "ransac": _RANSAC, "refinement": _REFINEMENT}
+)
 def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
 
     Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
     3-point samples, at most 100000 iterations at confidence 0.999.
     """
-    distance = 1.5 * voxel_size
+    distance = _RANSAC["max_correspondence_distance_voxels"] * voxel_size
     checkers = [
-        _reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-        _reg.CorrespondenceCheckerBasedOnDistance(distance),
+        _reg.CorrespondenceCheckerBasedOnEdgeLength(_RANSAC["edge_length_checker"]),
+        _reg.CorrespondenceCheckerBasedOnDistance(_RANSAC["distance_checker_voxels"] * voxel_size),
     ]
 
     def ransac(source_down, target_down, source_fpfh, target_fpfh):
@@ -227,22 +360,24 @@ def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarra
             target_down,
             source_fpfh,
             target_fpfh,
-            True,
+            _RANSAC["mutual_filter"],
             distance,
-            _reg.TransformationEstimationPointToPoint(False),
-            3,
+            _reg.TransformationEstimationPointToPoint(_RANSAC["with_scaling"]),
+            _RANSAC["ransac_n"],
             checkers,
-            _reg.RANSACConvergenceCriteria(100000, 0.999),
+            _reg.RANSACConvergenceCriteria(_RANSAC["max_iteration"], _RANSAC["confidence"]),
         )
 
     return _global_then_refine(source, target, voxel_size, seed, ransac), {}
 
 
-@register_method("fgr")
+@register_method("fgr", settings={"features": _FPFH, "fgr": _FGR, "refinement": _REFINEMENT})
 def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D Fast Global Registration on the tutorial's FPFH features (distance
     ``0.5 v``), then the same point-to-plane ICP refinement."""
-    option = _reg.FastGlobalRegistrationOption(maximum_correspondence_distance=0.5 * voxel_size)
+    option = _reg.FastGlobalRegistrationOption(
+        maximum_correspondence_distance=_FGR_DISTANCE_VOXELS * voxel_size
+    )
 
     def fast_global(source_down, target_down, source_fpfh, target_fpfh):
         return _reg.registration_fgr_based_on_feature_matching(

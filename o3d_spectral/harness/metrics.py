@@ -1,4 +1,4 @@
-"""Per-instance metrics of the evaluation harness, built on :mod:`o3d_spectral.symmetry`.
+"""Per-instance metrics of the evaluation harness, built on :mod:`o3d_spectral.harness.errors`.
 
 Translation errors are measured at the source's centroid (``Instance.source_center``):
 where the estimate and the ground truth put the object, not the source frame's origin,
@@ -15,14 +15,14 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from o3d_spectral import data
-from o3d_spectral.scenes import Instance
-from o3d_spectral.symmetry import (
+from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.synthetic import models
+from o3d_spectral.synthetic.instance import Instance
 
 __all__ = [
     "OBSERVATION_TOLERANCE",
@@ -146,7 +146,7 @@ def registration_fit(
 def _model_surface(name: str) -> tuple[o3d.t.geometry.RaycastingScene, np.ndarray, float]:
     """Distance queries to a bundled mesh in its own frame, and its bounding ball (centre,
     metres; radius, metres); built once per process."""
-    mesh = data.load_model(name)
+    mesh = models.load_model(name)
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
     vertices = np.asarray(mesh.vertices)

@@ -1,13 +1,6 @@
 """The evaluation loop: every method on every instance of some suites, resumable.
 
-A run folder holds
-
-* ``config.json``: voxel size, seed, success thresholds, suites, methods, and one entry per
-  session (start, wall time, registrations done, workers, machine);
-* ``results.jsonl``: one JSON object per (instance, method), appended as soon as it is
-  done, so an interrupted run resumes where it stopped;
-* ``results.csv``: the same rows as a table (without the convergence curves), sorted by
-  suite, instance and method.
+What the run folder holds is described in :mod:`o3d_spectral.harness.records`.
 
 Each registration runs in a worker process with one thread (``OMP_NUM_THREADS=1``), so
 results do not depend on the number of workers and times compare per core. A method's
@@ -23,7 +16,6 @@ import functools
 import importlib
 import json
 import os
-import platform
 import time
 import zlib
 from collections.abc import Iterator, Sequence
@@ -43,24 +35,20 @@ from o3d_spectral.harness.metrics import (
     instance_metrics,
     registration_fit,
 )
-from o3d_spectral.suite import Suite, load_suite
+from o3d_spectral.harness.records import (
+    CURVE_COLUMNS,
+    RESULTS_FILE,
+    done_keys,
+    prepare_config,
+    session_record,
+    suite_name,
+    write_config,
+    write_results_table,
+)
+from o3d_spectral.synthetic.suite import Suite, load_suite
 
-__all__ = [
-    "CONFIG_FILE",
-    "CURVE_COLUMNS",
-    "RESULTS_FILE",
-    "TABLE_FILE",
-    "load_results",
-    "run_eval",
-    "task_seed",
-]
+__all__ = ["run_eval", "task_seed"]
 
-CONFIG_FILE = "config.json"
-RESULTS_FILE = "results.jsonl"
-TABLE_FILE = "results.csv"
-#: Per-iteration symmetry-aware errors of iterative methods (lists; not in the CSV table).
-CURVE_COLUMNS = ("curve_rotation_deg", "curve_translation_m")
-_KEY = ("suite", "index", "method")
 _METADATA = (
     "condition",
     "object",
@@ -148,86 +136,6 @@ def _run_task(task: _Task) -> dict:
     return row
 
 
-def _machine() -> dict:
-    import open3d as o3d
-
-    import o3d_spectral
-
-    cpu = platform.processor()
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "memory_gib": round(memory, 1),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "open3d": o3d.__version__,
-        "numpy": np.__version__,
-        "o3d_spectral": o3d_spectral.__version__,
-    }
-
-
-def _suite_name(suite: Suite) -> str:
-    return suite.root.resolve().name
-
-
-def _prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list[str]) -> dict:
-    """Read the run's config (checking that its settings match) or start a new one."""
-    path = out / CONFIG_FILE
-    if path.is_file():
-        config = json.loads(path.read_text())
-        for key, value in settings.items():
-            if config.get(key) != value:
-                raise ValueError(
-                    f"out {str(out)!r} holds a run with {key}={config.get(key)!r}, not "
-                    f"{value!r}; resume with the same settings or choose another --out"
-                )
-    else:
-        config = {**settings, "suites": [], "methods": [], "sessions": []}
-    known = {entry["name"]: entry for entry in config["suites"]}
-    for suite in suites:
-        entry = known.get(_suite_name(suite))
-        if entry and (entry["condition"], entry["seed"]) != (
-            suite.condition,
-            suite.manifest["seed"],
-        ):
-            raise ValueError(
-                f"suite {str(suite.root)!r} is {suite.condition} with seed "
-                f"{suite.manifest['seed']}, but out {str(out)!r} holds results of a suite of the "
-                f"same name that is {entry['condition']} with seed {entry['seed']}; choose "
-                "another --out"
-            )
-        if entry is None:
-            config["suites"].append(
-                {
-                    "name": _suite_name(suite),
-                    "path": str(suite.root.resolve()),
-                    "condition": suite.condition,
-                    "n": len(suite),
-                    "seed": suite.manifest["seed"],
-                }
-            )
-    config["methods"] += [m for m in methods if m not in config["methods"]]
-    return config
-
-
-def _done(results: Path) -> set[tuple]:
-    """Keys of the rows already in ``results``; a last row cut off by a kill is removed
-    (it will be run again)."""
-    if not results.is_file():
-        return set()
-    text = results.read_text()
-    complete = text[: text.rfind("\n") + 1]
-    if complete != text:
-        results.write_text(complete)
-    return {tuple(json.loads(line)[k] for k in _KEY) for line in complete.splitlines() if line}
-
-
 @contextlib.contextmanager
 def _single_threaded_children() -> Iterator[None]:
     """Environment inherited by the worker processes started inside the block."""
@@ -255,7 +163,7 @@ def _tasks(
 ) -> list[_Task]:
     tasks = []
     for suite in suites:
-        name = _suite_name(suite)
+        name = suite_name(suite)
         for index in range(len(suite) if limit is None else min(limit, len(suite))):
             condition = suite.manifest["instances"][index]["condition"]
             for method in methods:
@@ -287,6 +195,71 @@ def _execute(
         finally:  # on an interrupt, drop the queued tasks instead of running them all
             pool.shutdown(wait=True, cancel_futures=True)
             bar.close()
+
+
+def _inputs(
+    suites: Sequence[str | Path],
+    methods: Sequence[str] | None,
+    *,
+    workers: int,
+    voxel_size: float,
+    limit: int | None,
+    plugins: Sequence[str],
+) -> tuple[list[str], list[Suite]]:
+    """Check the arguments of :func:`run_eval`, import the plugins; the method names and
+    the loaded suites."""
+    if not suites:
+        raise ValueError("suites must name at least one suite folder")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if not voxel_size > 0:
+        raise ValueError(f"voxel_size must be positive (metres), got {voxel_size}")
+    if limit is not None and limit < 1:
+        raise ValueError(f"limit must be >= 1, got {limit}")
+    for module in plugins:
+        importlib.import_module(module)
+    methods = list(method_names() if methods is None else methods)
+    for method in methods:
+        get_method(method)
+    loaded = [load_suite(path) for path in suites]
+    names = [suite_name(suite) for suite in loaded]
+    if len(set(names)) != len(names):
+        raise ValueError(f"suites must have distinct folder names, got {names}")
+    return methods, loaded
+
+
+def _session(
+    out: Path,
+    config: dict,
+    tasks: list[_Task],
+    methods: list[str],
+    *,
+    workers: int,
+    plugins: tuple[str, ...],
+    progress: bool,
+) -> None:
+    """Run ``tasks``, appending each row to ``results.jsonl`` as it comes, then record the
+    session in ``config.json`` (also when interrupted)."""
+    started, start = datetime.datetime.now().isoformat(timespec="seconds"), time.perf_counter()
+    done = 0
+    try:
+        with (out / RESULTS_FILE).open("a") as sink:
+            for row in _execute(tasks, workers=workers, plugins=plugins, progress=progress):
+                sink.write(json.dumps(row) + "\n")
+                sink.flush()
+                done += 1
+    finally:  # an interrupted session still counts its time and registrations
+        config["sessions"].append(
+            session_record(
+                methods,
+                started=started,
+                seconds=round(time.perf_counter() - start, 1),
+                registrations=done,
+                complete=done == len(tasks),
+                workers=workers,
+            )
+        )
+        write_config(out, config)
 
 
 def run_eval(
@@ -336,84 +309,25 @@ def run_eval(
     Path
         The per-instance table ``out_dir/results.csv``.
     """
-    if not suites:
-        raise ValueError("suites must name at least one suite folder")
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    if not voxel_size > 0:
-        raise ValueError(f"voxel_size must be positive (metres), got {voxel_size}")
-    if limit is not None and limit < 1:
-        raise ValueError(f"limit must be >= 1, got {limit}")
-    for module in plugins:
-        importlib.import_module(module)
-    methods = list(method_names() if methods is None else methods)
-    for method in methods:
-        get_method(method)
-    loaded = [load_suite(path) for path in suites]
-    names = [_suite_name(suite) for suite in loaded]
-    if len(set(names)) != len(names):
-        raise ValueError(f"suites must have distinct folder names, got {names}")
+    methods, loaded = _inputs(
+        suites, methods, workers=workers, voxel_size=voxel_size, limit=limit, plugins=plugins
+    )
     criteria = criteria or SuccessCriteria()
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     settings = {"voxel_size": voxel_size, "seed": seed, "criteria": asdict(criteria)}
-    config = _prepare_config(out, loaded, settings, methods)
-    results = out / RESULTS_FILE
+    config = prepare_config(out, loaded, settings, methods)
     tasks = _tasks(
         loaded,
         methods,
-        _done(results),
+        done_keys(out / RESULTS_FILE),
         seed=seed,
         voxel_size=voxel_size,
         criteria=criteria,
         limit=limit,
     )
-
-    (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
-    started, start = datetime.datetime.now().isoformat(timespec="seconds"), time.perf_counter()
-    done = 0
-    try:
-        with results.open("a") as sink:
-            for row in _execute(tasks, workers=workers, plugins=tuple(plugins), progress=progress):
-                sink.write(json.dumps(row) + "\n")
-                sink.flush()
-                done += 1
-    finally:  # an interrupted session still counts its time and registrations
-        config["sessions"].append(
-            {
-                "started": started,
-                "seconds": round(time.perf_counter() - start, 1),
-                "registrations": done,
-                "complete": done == len(tasks),
-                "workers": workers,
-                "machine": _machine(),
-            }
-        )
-        (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
-    table = out / TABLE_FILE
-    load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore").to_csv(
-        table, index=False
-    )
-    return table
-
-
-def load_results(path: str | Path):
-    """The rows of a run as a ``pandas.DataFrame``, sorted by suite, instance and method.
-
-    Parameters
-    ----------
-    path : str or Path
-        A run folder, or its ``results.jsonl``.
-    """
-    path = Path(path)
-    file = path / RESULTS_FILE if path.is_dir() else path
-    if not file.is_file():
-        raise FileNotFoundError(f"no {RESULTS_FILE} at {path}; run o3d-spectral eval first")
-    with file.open() as lines:  # json, not pandas' parser: floats stay exact
-        rows = [json.loads(line) for line in lines if line.strip()]
-    if not rows:
-        raise ValueError(f"{file} holds no results yet")
-    frame = require("pandas").DataFrame(rows)
-    frame = frame.drop_duplicates(subset=list(_KEY), keep="last")
-    return frame.sort_values(list(_KEY)).reset_index(drop=True)
+    write_config(out, config)
+    plugins = tuple(plugins)
+    _session(out, config, tasks, methods, workers=workers, plugins=plugins, progress=progress)
+    return write_results_table(out)

@@ -7,7 +7,7 @@ controller tracks the command within one control period.
 
 Frames: ``world_from_base`` places the arm's base; the flange is the frame of
 ``lbr_iiwa_link_7``; the camera sits at :data:`HAND_EYE` (``flange_from_camera``), looking
-along the tool axis, with the OpenCV convention of :mod:`o3d_spectral.camera` (z forward,
+along the tool axis, with the OpenCV convention of :mod:`o3d_spectral.synthetic.camera` (z forward,
 x right, y down in the image).
 """
 

@@ -1,11 +1,11 @@
 """The static tabletop the camera looks at, the sensor, and the random start poses.
 
-The scene is the scene suite's tabletop (``o3d_spectral.scenes``: a 0.8 x 0.6 m table,
-top at z = 0, with YCB objects resting on it without overlap, the first in the table's
-central half and the others clustered near it). The sensor is the suites' depth camera
-model (:mod:`o3d_spectral.camera`: Open3D raycasting, the same structured-light noise and
-quantisation) at a 320 x 240 resolution. The arm's base stands beside the table at
-:data:`WORLD_FROM_BASE`; the robot itself is not rendered.
+The scene is the scene suite's tabletop (:mod:`o3d_spectral.synthetic.tabletop`: a 0.8 x
+0.6 m table, top at z = 0, with YCB objects resting on it without overlap, the first in the
+table's central half and the others clustered near it). The sensor is the suites' depth
+camera model (:mod:`o3d_spectral.synthetic.camera`: Open3D raycasting, the same
+structured-light noise and quantisation) at a 320 x 240 resolution. The arm's base stands
+beside the table at :data:`WORLD_FROM_BASE`; the robot itself is not rendered.
 """
 
 from __future__ import annotations
@@ -17,9 +17,11 @@ import open3d as o3d
 from numpy.typing import NDArray
 
 from .. import so3
-from ..camera import CameraIntrinsics, DepthNoise, look_at, scan_meshes
-from ..data import model_names
-from ..scenes import sample_surface, table_mesh, tabletop
+from ..synthetic.camera import look_at, scan_meshes
+from ..synthetic.models import model_names
+from ..synthetic.sampling import sample_surface
+from ..synthetic.sensor import CameraIntrinsics, DepthNoise
+from ..synthetic.tabletop import table_mesh, tabletop
 from .robot import Arm
 
 __all__ = [

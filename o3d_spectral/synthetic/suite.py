@@ -11,16 +11,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.camera import CameraIntrinsics, DepthNoise
-from o3d_spectral.data import model_names
-from o3d_spectral.scenes import CONDITIONS, Instance, SceneOptions, make_instance
+from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 
 __all__ = [
     "MANIFEST",
@@ -91,6 +92,38 @@ def _options_from_json(data: dict) -> SceneOptions:
     return SceneOptions(**fields)
 
 
+def _check_suite_arguments(condition: str, n: int, seed: int, workers: int) -> None:
+    if condition not in CONDITIONS:
+        raise ValueError(f"condition must be one of {', '.join(CONDITIONS)}; got {condition!r}")
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+
+
+def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -> list[dict]:
+    """Manifest entries of ``tasks`` (see :func:`_build`), in order, from ``workers``
+    processes (this one when 1)."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), desc=desc, unit="inst", disable=not progress)
+    if workers == 1:
+        entries = []
+        for task in tasks:
+            entries.append(_build(task))
+            bar.update()
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            entries = []
+            for entry in pool.map(_build, tasks):
+                entries.append(entry)
+                bar.update()
+    bar.close()
+    return entries
+
+
 def make_suite(
     condition: str,
     n: int,
@@ -108,7 +141,7 @@ def make_suite(
     Parameters
     ----------
     condition : {"full", "partial", "occluded", "cluttered"}
-        See :mod:`o3d_spectral.scenes`.
+        See :mod:`o3d_spectral.synthetic.scenes`.
     n : int
         Number of instances (>= 1).
     seed : int
@@ -127,35 +160,13 @@ def make_suite(
     Path
         Path of the written manifest.
     """
-    if condition not in CONDITIONS:
-        raise ValueError(f"condition must be one of {', '.join(CONDITIONS)}; got {condition!r}")
-    if n < 1:
-        raise ValueError(f"n must be >= 1, got {n}")
-    if seed < 0:
-        raise ValueError(f"seed must be >= 0, got {seed}")
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+    _check_suite_arguments(condition, n, seed, workers)
     options = SceneOptions() if options is None else options
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     names = model_names()
     tasks = [(condition, names[i % len(names)], seed, i, options, str(out)) for i in range(n)]
-
-    from tqdm import tqdm
-
-    bar = tqdm(total=n, desc=f"{condition} suite", unit="inst", disable=not progress)
-    if workers == 1:
-        entries = []
-        for task in tasks:
-            entries.append(_build(task))
-            bar.update()
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            entries = []
-            for entry in pool.map(_build, tasks):
-                entries.append(entry)
-                bar.update()
-    bar.close()
+    entries = _build_all(tasks, workers, desc=f"{condition} suite", progress=progress)
     manifest = {
         "format": FORMAT,
         "version": VERSION,
@@ -235,6 +246,26 @@ def load_suite(directory: str | Path) -> Suite:
     return Suite(directory)
 
 
+def _draw_panel(ax, label: str, layers: list[tuple], view: Callable) -> None:
+    """Scatter ``layers`` (points, size, colour, alpha), each passed through ``view``, on
+    the 3-D axes ``ax``: camera frame (x right, y down, z forward) drawn as (x, depth, up)."""
+    shown = []
+    for points, size, colour, alpha in layers:
+        points = view(points)
+        if len(points):
+            xyz = points[:, 0], points[:, 2], -points[:, 1]
+            ax.scatter(*xyz, s=size, c=colour, alpha=alpha, depthshade=False)
+            shown.append(points)
+    shown = np.concatenate(shown)
+    ax.set_box_aspect(np.ptp(shown[:, [0, 2, 1]], axis=0) + 1e-3)
+    ax.view_init(elev=20, azim=-75)
+    ax.set_title(label, fontsize=10)
+    ax.set_xlabel("x (m)", fontsize=8)
+    ax.set_ylabel("z (m)", fontsize=8)
+    ax.set_zlabel("-y (m)", fontsize=8)
+    ax.tick_params(labelsize=6)
+
+
 def save_instance_figure(
     instance: Instance, path: str | Path, *, max_points: int = 6000, title: str | None = None
 ) -> Path:
@@ -267,36 +298,18 @@ def save_instance_figure(
     def crop(points: np.ndarray) -> np.ndarray:
         return points[np.all((points >= lo) & (points <= hi), axis=1)]
 
-    def to_plot(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        # Camera frame (x right, y down, z forward) to plot axes (x, depth, up).
-        return points[:, 0], points[:, 2], -points[:, 1]
-
     fig = plt.figure(figsize=(10, 4.6), dpi=90)
     panels = [
         ("input: source and target", source, lambda p: p),
         ("ground truth: T_gt @ source (close-up)", moved, crop),
     ]
     for k, (label, src, view) in enumerate(panels):
-        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         layers = [(table, 0.3, "0.8", 1.0), (others, 0.3, "0.45", 1.0)]
         layers += [
             (target_obj, 0.6, "tab:orange", 0.35),
             (subsample(src, max_points), 0.4, "tab:blue", 1.0),
         ]
-        shown = []
-        for points, size, colour, alpha in layers:
-            points = view(points)
-            if len(points):
-                ax.scatter(*to_plot(points), s=size, c=colour, alpha=alpha, depthshade=False)
-                shown.append(points)
-        shown = np.concatenate(shown)
-        ax.set_box_aspect(np.ptp(shown[:, [0, 2, 1]], axis=0) + 1e-3)
-        ax.view_init(elev=20, azim=-75)
-        ax.set_title(label, fontsize=10)
-        ax.set_xlabel("x (m)", fontsize=8)
-        ax.set_ylabel("z (m)", fontsize=8)
-        ax.set_zlabel("-y (m)", fontsize=8)
-        ax.tick_params(labelsize=6)
+        _draw_panel(fig.add_subplot(1, 2, k + 1, projection="3d"), label, layers, view)
     meta = instance.metadata
     fig.suptitle(
         title

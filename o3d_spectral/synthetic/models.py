@@ -27,7 +27,7 @@ def objects_dir() -> Path:
     candidates = []
     if env := os.environ.get("O3D_SPECTRAL_DATA"):
         candidates.append(Path(env))
-    candidates.append(Path(__file__).resolve().parent.parent / "datasets" / "objects")
+    candidates.append(Path(__file__).resolve().parents[2] / "datasets" / "objects")
     candidates.append(Path(sys.prefix) / "share" / "o3d-spectral" / "objects")
     for folder in candidates:
         if folder.is_dir() and any(folder.glob("*.ply")):

@@ -1,19 +1,12 @@
-"""Geometric symmetries of the bundled objects and pose errors that respect them.
+"""Geometric symmetries of the bundled objects: their groups, found on the meshes.
 
 A symmetry of a model is a rigid motion ``S`` (4x4) with ``S(model) == model`` up to a small
-surface residual. Following the BOP benchmark (Hodan et al., ECCV 2020), a pose estimate
-``T_est`` of a symmetric object is as good as its best match among the equivalent ground
-truths ``T_gt @ S``; the ``symmetric_*`` errors minimise over the group, the plain errors do
-not.
+surface residual. Each model's kinds of symmetry are recorded in a table; their axes start
+at the principal axes of the mesh surface (:func:`surface_moments`) and are refined on the
+mesh (:func:`refine_axis`). The pose errors that minimise over a group are in
+:mod:`o3d_spectral.harness.errors`.
 
-All transforms are 4x4 float64 arrays mapping source points onto target points
-(``target ~ T @ source``); rotations may also be passed as 3x3. Errors are in degrees
-(rotation) and metres (translation, distances).
-
-References
-----------
-T. Hodan, M. Sundermeyer, B. Drost et al., "BOP Challenge 2020 on 6D Object Localization",
-ECCV Workshops 2020, doi:10.1007/978-3-030-66096-3_39.
+All transforms are 4x4 float64 arrays; distances are in metres.
 """
 
 from __future__ import annotations
@@ -25,23 +18,17 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral import so3
-from o3d_spectral.data import load_model
 from o3d_spectral.refinement import point_to_plane_icp
+from o3d_spectral.synthetic.models import load_model
 
 __all__ = [
     "SYMMETRIC_MODELS",
     "Symmetry",
     "model_symmetry",
-    "mssd",
     "refine_axis",
     "surface_moments",
-    "rotation_error",
-    "symmetric_rotation_error",
-    "symmetric_translation_error",
-    "translation_error",
 ]
 
-_EPS = 1e-12
 
 #: Correspondence distance (m) of the ICP that refines each symmetry axis on the mesh.
 REFINE_DISTANCE = 0.01
@@ -216,9 +203,7 @@ def refine_axis(
     point : ndarray, shape (3,)
         The point of the refined axis nearest ``center`` (m).
     """
-    refined = point_to_plane_icp(
-        cloud, cloud, REFINE_DISTANCE, _about_point(axis, angle, center)
-    )
+    refined = point_to_plane_icp(cloud, cloud, REFINE_DISTANCE, _about_point(axis, angle, center))
     direction = so3.log(refined[:3, :3])
     direction /= np.linalg.norm(direction)
     direction *= np.sign(direction @ axis)
@@ -279,166 +264,3 @@ def model_symmetry(name: str) -> Symmetry:
         axis=None if continuous is None else axes[continuous].copy(),
         center=center,
     )
-
-
-def _as_rotation(transform: np.ndarray, name: str) -> np.ndarray:
-    transform = np.asarray(transform, dtype=float)
-    if transform.shape not in ((3, 3), (4, 4)):
-        raise ValueError(f"{name} must be 3x3 or 4x4, got shape {transform.shape}")
-    return transform[:3, :3]
-
-
-def _as_transform(transform: np.ndarray, name: str) -> np.ndarray:
-    transform = np.asarray(transform, dtype=float)
-    if transform.shape != (4, 4):
-        raise ValueError(f"{name} must be 4x4, got shape {transform.shape}")
-    return transform
-
-
-def _angle_from_trace(trace: np.ndarray | float) -> float:
-    return float(np.rad2deg(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))))
-
-
-def rotation_error(T_est: np.ndarray, T_gt: np.ndarray) -> float:
-    """Angle of ``R_gt^T R_est`` in degrees: ``arccos((tr(R_gt^T R_est) - 1) / 2)``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4) or (3, 3)
-        Estimated and true source-to-target transforms (only the rotations are used).
-
-    Returns
-    -------
-    float
-        Error in degrees, in [0, 180].
-    """
-    r_est, r_gt = _as_rotation(T_est, "T_est"), _as_rotation(T_gt, "T_gt")
-    return _angle_from_trace(np.trace(r_gt.T @ r_est))
-
-
-def _shifted(transform: np.ndarray, center: np.ndarray | None) -> np.ndarray:
-    """``transform @ Tr(center)``: the motion seen from a source frame centred on ``center``."""
-    if center is None:
-        return transform
-    shift = np.eye(4)
-    shift[:3, 3] = np.asarray(center, dtype=np.float64).reshape(3)
-    return transform @ shift
-
-
-def translation_error(
-    T_est: np.ndarray, T_gt: np.ndarray, *, center: np.ndarray | None = None
-) -> float:
-    """Distance (m) between where two 4x4 transforms put the source point ``center``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4)
-    center : ndarray, shape (3,), optional
-        Source point (m) at which the error is measured; the source frame's origin when
-        omitted (the difference of the translations). The object's centroid makes the
-        error independent of where the source frame's origin lies: far from the object,
-        the origin turns every rotation error into a large translation error.
-    """
-    t_est = _shifted(_as_transform(T_est, "T_est"), center)
-    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
-    return float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
-
-
-def symmetric_rotation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symmetry) -> float:
-    """``min_S rotation_error(T_est, T_gt @ S)`` over the symmetry group (degrees).
-
-    The minimum over a continuous axis is exact: with ``A = R_gt^T R_est D^T`` and
-    ``C(theta)`` the rotation about unit axis ``a``,
-    ``tr(C^T A) = a^T A a + p cos(theta) + q sin(theta)``, maximal at
-    ``a^T A a + sqrt(p^2 + q^2)`` where ``p = tr(A) - a^T A a``, ``q = tr([a]_x^T A)``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4)
-        Estimated and true source-to-target transforms.
-    symmetry : Symmetry
-        The object's symmetry group in the source frame (e.g. ``Instance.symmetry``).
-    """
-    r_est, r_gt = _as_rotation(T_est, "T_est"), _as_rotation(T_gt, "T_gt")
-    best = -np.inf
-    for d in symmetry.discrete:
-        a_mat = r_gt.T @ r_est @ d[:3, :3].T
-        if symmetry.axis is None:
-            best = max(best, np.trace(a_mat))
-            continue
-        a = symmetry.axis
-        along = a @ a_mat @ a
-        p = np.trace(a_mat) - along
-        # tr([a]_x^T A) = a . (A_32 - A_23, A_13 - A_31, A_21 - A_12)
-        q = a @ np.array(
-            [a_mat[2, 1] - a_mat[1, 2], a_mat[0, 2] - a_mat[2, 0], a_mat[1, 0] - a_mat[0, 1]]
-        )
-        best = max(best, along + np.hypot(p, q))
-    return _angle_from_trace(best)
-
-
-def symmetric_translation_error(
-    T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symmetry, *, center: np.ndarray | None = None
-) -> float:
-    """``min_S translation_error(T_est, T_gt @ S, center=center)`` over the symmetry group (m).
-
-    The minimum over a continuous axis is exact: the translation of ``T_gt @ C(theta) @ D``
-    runs on a circle about the axis, and the closest point of a circle is found in closed
-    form. Translations depend on where the source frame's origin is: pass the object's
-    centroid as ``center`` (see :func:`translation_error`), or use :func:`mssd`.
-    """
-    if center is not None:
-        back = np.eye(4)
-        back[:3, 3] = -np.asarray(center, dtype=np.float64).reshape(3)
-        symmetry = symmetry.transformed(back)
-    t_est = _shifted(_as_transform(T_est, "T_est"), center)
-    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
-    # In the source frame: translation(T_gt @ C @ D) = t_gt + R_gt (c + R_C (t_D - c)).
-    w = t_gt[:3, :3].T @ (t_est[:3, 3] - t_gt[:3, 3]) - symmetry.center
-    best = np.inf
-    for d in symmetry.discrete:
-        v = d[:3, 3] - symmetry.center
-        if symmetry.axis is None:
-            best = min(best, np.linalg.norm(w - v))
-            continue
-        a = symmetry.axis
-        w_perp, v_perp = w - (w @ a) * a, v - (v @ a) * a
-        radial = np.linalg.norm(w_perp) - np.linalg.norm(v_perp)
-        best = min(best, np.hypot(w @ a - v @ a, radial))
-    return float(best)
-
-
-def mssd(
-    T_est: np.ndarray,
-    T_gt: np.ndarray,
-    points: np.ndarray,
-    symmetry: Symmetry | None = None,
-    *,
-    step: float = np.deg2rad(1.0),
-) -> float:
-    """Maximum symmetry-aware surface distance (BOP's MSSD), in metres.
-
-    ``min_S max_x ||T_est x - T_gt S x||`` over model points ``x``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4)
-        Estimated and true source-to-target transforms.
-    points : ndarray, shape (N, 3)
-        Model points in the source frame (m), e.g. the source cloud's points.
-    symmetry : Symmetry, optional
-        Group in the source frame; None for no symmetry.
-    step : float, optional
-        Sampling step (radians) of a continuous axis; the minimum is over this sampling.
-    """
-    t_est, t_gt = _as_transform(T_est, "T_est"), _as_transform(T_gt, "T_gt")
-    points = np.asarray(points, dtype=float)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ValueError(f"points must have shape (N, 3), got {points.shape}")
-    group = np.eye(4)[None] if symmetry is None else symmetry.elements(step=step)
-    moved_est = points @ t_est[:3, :3].T + t_est[:3, 3]
-    best = np.inf
-    for s in t_gt @ group:
-        moved_gt = points @ s[:3, :3].T + s[:3, 3]
-        best = min(best, np.max(np.linalg.norm(moved_est - moved_gt, axis=1)))
-    return float(best)

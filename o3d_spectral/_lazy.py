@@ -1,0 +1,21 @@
+"""Package attributes imported on first access (PEP 562), so that importing one module of
+a package does not import all the others (and the packages may use each other's modules
+without an import cycle through their ``__init__``)."""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from typing import Any
+
+
+def lazy_attributes(package: str, where: dict[str, str]) -> Callable[[str], Any]:
+    """A module ``__getattr__`` for ``package`` that imports ``name`` from the submodule
+    ``where[name]`` on first access."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in where:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        return getattr(importlib.import_module(f"{package}.{where[name]}"), name)
+
+    return __getattr__

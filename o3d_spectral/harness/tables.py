@@ -1,0 +1,250 @@
+"""Result tables of an evaluation run, as numbers (:class:`Table`); written out by
+:mod:`o3d_spectral.harness.writers` (Markdown, LaTeX, CSV).
+
+* ``table1``: the paper's Table 1, mean squared translation (m^2) and rotation (rad^2)
+  errors per method, columns C-1 (full), C-2 (partial), C-3 (cluttered), then the other
+  suites;
+* ``summary``: per suite and method, success rate, median errors over the successes,
+  median and 90th-percentile time;
+* ``comparison``: each spectral method against the most successful other method, suite
+  by suite, with a plain verdict (where spectral loses);
+* ``ambiguity``: per suite, the instances whose view leaves a wrong pose open.
+
+Also the order and labels of methods and suites that the plots share.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from o3d_spectral.harness._optional import require
+from o3d_spectral.harness.methods import method_names
+from o3d_spectral.harness.records import CURVE_COLUMNS
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "PAPER_CONDITIONS",
+    "Table",
+    "ambiguity_table",
+    "comparison_table",
+    "method_order",
+    "paper_table",
+    "spectral_methods",
+    "suite_label",
+    "suite_order",
+    "summary_table",
+]
+
+#: Columns of the paper's Table 1.
+PAPER_CONDITIONS = {"full": "C-1", "partial": "C-2", "cluttered": "C-3"}
+
+
+@dataclass(frozen=True)
+class Table:
+    """A result table: numbers in ``frame``, how to print each column in ``formats``.
+
+    Attributes
+    ----------
+    name : str
+        File stem.
+    caption : str
+    frame : pandas.DataFrame
+        Raw values (written as they are to CSV).
+    formats : dict of str to str
+        Per column: ``"text"``, ``"int"``, ``"pct"`` (a fraction shown in percent),
+        ``"f1"``, ``"f2"``, ``"f3"`` (fixed decimals) or ``"sci"``.
+    """
+
+    name: str
+    caption: str
+    frame: pd.DataFrame
+    formats: dict[str, str]
+
+
+# ---------------------------------------------------------------------------- ordering
+
+
+def method_order(frame: pd.DataFrame) -> list[str]:
+    present = list(dict.fromkeys(frame["method"]))
+    known = [m for m in method_names() if m in present]
+    return known + sorted(m for m in present if m not in known)
+
+
+def suite_order(frame: pd.DataFrame) -> list[tuple[str, str]]:
+    """(suite, condition) pairs: C-1, C-2, C-3 first, then the others by name."""
+    pairs = frame[["suite", "condition"]].drop_duplicates().itertuples(index=False)
+    rank = {condition: k for k, condition in enumerate(PAPER_CONDITIONS)}
+    return sorted(pairs, key=lambda p: (rank.get(p[1], len(rank)), p[0]))
+
+
+def suite_label(suite: str, condition: str) -> str:
+    return f"{PAPER_CONDITIONS[condition]} ({suite})" if condition in PAPER_CONDITIONS else suite
+
+
+def spectral_methods(frame: pd.DataFrame) -> list[str]:
+    """Methods that reported convergence curves (iterative spectral variants)."""
+    if CURVE_COLUMNS[0] not in frame:
+        return []
+    has_curve = frame[CURVE_COLUMNS[0]].map(lambda c: isinstance(c, list) and len(c) > 0)
+    return [m for m in method_order(frame) if has_curve[frame["method"] == m].any()]
+
+
+# ---------------------------------------------------------------------------- tables
+
+
+def paper_table(frame: pd.DataFrame) -> Table:
+    """The paper's Table 1: mean squared symmetry-aware errors per method and suite."""
+    pandas = require("pandas")
+    suites = suite_order(frame)
+    rows = []
+    for method in method_order(frame):
+        for column, label in (
+            ("squared_translation_error_m2", "translation (m²)"),
+            ("squared_rotation_error_rad2", "rotation (rad²)"),
+        ):
+            row = {"method": method, "error": label}
+            for suite, condition in suites:
+                cell = frame[(frame["method"] == method) & (frame["suite"] == suite)]
+                row[suite_label(suite, condition)] = cell[column].mean()
+            rows.append(row)
+    result = pandas.DataFrame(rows)
+    formats = {"method": "text", "error": "text"} | {c: "sci" for c in result.columns[2:]}
+    caption = (
+        "Mean squared error over instances (the paper's Table 1): translation at the "
+        "object's centroid in m², rotation in rad², both symmetry-aware; runs that raised "
+        "an error are left out (see `failed` in the summary)."
+    )
+    return Table("table1", caption, result, formats)
+
+
+def summary_table(frame: pd.DataFrame) -> Table:
+    """Per suite and method: success rate, median errors over successes, time."""
+    pandas = require("pandas")
+    rows = []
+    for suite, condition in suite_order(frame):
+        for method in method_order(frame):
+            runs = frame[(frame["suite"] == suite) & (frame["method"] == method)]
+            if runs.empty:
+                continue
+            wins = runs[runs["success"].astype(bool)]
+            failed = runs["error"].notna().sum() if "error" in runs else 0
+            open_view = _flagged(runs).sum()
+            rows.append(
+                {
+                    "suite": suite_label(suite, condition),
+                    "method": method,
+                    "n": len(runs),
+                    "success (%)": runs["success"].astype(bool).mean(),
+                    "rotation error (deg)": wins["rotation_error_sym_deg"].median(),
+                    "translation error (mm)": 1e3 * wins["translation_error_sym_m"].median(),
+                    "median time (s)": runs["time_s"].median(),
+                    "p90 time (s)": runs["time_s"].quantile(0.9),
+                    "failed": failed,
+                    "indistinguishable": open_view,
+                }
+            )
+    result = pandas.DataFrame(rows)
+    formats = {
+        "suite": "text",
+        "method": "text",
+        "n": "int",
+        "success (%)": "pct",
+        "rotation error (deg)": "f2",
+        "translation error (mm)": "f2",
+        "median time (s)": "f3",
+        "p90 time (s)": "f3",
+        "failed": "int",
+        "indistinguishable": "int",
+    }
+    caption = (
+        "Success (symmetry-aware rotation and translation errors within the thresholds), "
+        "median errors over the successful runs only, wall time per registration (one "
+        "thread); `failed`: runs that raised an error (counted as failures); "
+        "`indistinguishable`: failures whose pose fits the observed points as well as the "
+        "ground truth does (`o3d_spectral.harness.metrics.indistinguishable`)."
+    )
+    return Table("summary", caption, result, formats)
+
+
+def _flagged(runs: pd.DataFrame) -> pd.Series:
+    """Per run: a failure whose pose fits the observation as well as the truth."""
+    if "indistinguishable" not in runs:
+        return require("pandas").Series(False, index=runs.index)
+    return runs["indistinguishable"].map(lambda v: v is True or v == 1.0).astype(bool)
+
+
+def ambiguity_table(frame: pd.DataFrame) -> Table:
+    """Per suite: instances on which some method returned a wrong pose that fits the
+    observed points as well as the ground truth (an open view)."""
+    pandas = require("pandas")
+    rows = []
+    for suite, condition in suite_order(frame):
+        runs = frame[frame["suite"] == suite]
+        flagged = runs[_flagged(runs)]
+        instances, open_views = runs["index"].nunique(), flagged["index"].nunique()
+        rows.append(
+            {
+                "suite": suite_label(suite, condition),
+                "instances": instances,
+                "open views": open_views,
+                "open (%)": open_views / instances,
+                "methods flagging": flagged["method"].nunique(),
+            }
+        )
+    result = pandas.DataFrame(rows)
+    formats = {"suite": "text", "instances": "int", "open views": "int"}
+    formats |= {"open (%)": "pct", "methods flagging": "int"}
+    caption = (
+        "`open views`: instances on which at least one method returned a wrong pose "
+        "(outside the success thresholds) that explains at least 99% as many observed "
+        "points as the ground truth does, within 5 mm of the model's surface, with at "
+        "least the truth's share of its sensor-facing points, less 1%, within 5 mm of an "
+        "observed point (`indistinguishable` in the summary counts them per method). The "
+        "observed points cannot tell that pose from the truth: whether a method succeeds "
+        "there depends on which of equally good poses it returns. Found by the methods' "
+        "own mistakes, so a lower bound on how many views are open."
+    )
+    return Table("ambiguity", caption, result, formats)
+
+
+def comparison_table(summary: Table, spectral: list[str]) -> Table:
+    """Each spectral method against the most successful non-spectral method, per suite."""
+    pandas = require("pandas")
+    data = summary.frame
+    rows = []
+    for suite in dict.fromkeys(data["suite"]):
+        here = data[data["suite"] == suite]
+        others = here[~here["method"].isin(spectral)]
+        if others.empty:
+            continue
+        best = others.loc[others["success (%)"].idxmax()]
+        for method in spectral:
+            mine = here[here["method"] == method]
+            if mine.empty:
+                continue
+            mine = mine.iloc[0]
+            delta = mine["success (%)"] - best["success (%)"]
+            rows.append(
+                {
+                    "suite": suite,
+                    "method": method,
+                    "success (%)": mine["success (%)"],
+                    "best other": best["method"],
+                    "its success (%)": best["success (%)"],
+                    "median time (s)": mine["median time (s)"],
+                    "its median time (s)": best["median time (s)"],
+                    "verdict": "loses" if delta < 0 else ("ties" if delta == 0 else "wins"),
+                }
+            )
+    result = pandas.DataFrame(rows)
+    formats = {c: "text" for c in ("suite", "method", "best other", "verdict")}
+    formats |= {"success (%)": "pct", "its success (%)": "pct"}
+    formats |= {"median time (s)": "f3", "its median time (s)": "f3"}
+    caption = (
+        "Each spectral method against the most successful other method of the suite; "
+        "the verdict is on the success rate alone."
+    )
+    return Table("comparison", caption, result, formats)
