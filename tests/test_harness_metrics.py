@@ -172,7 +172,6 @@ def test_registry_holds_the_issue_methods():
         "spectral_paper",
         "spectral_global",
         "spectral_global_unrefined",
-        "spectral_global_sampled",
         "icp_point_to_point",
         "icp_point_to_plane",
         "fpfh_ransac",
@@ -219,8 +218,15 @@ def test_methods_keep_their_settings(monkeypatch):
     assert icp["criteria"]["max_iteration"] == methods.ICP_MAX_ITERATION
     assert methods.method_settings("fpfh_ransac")["ransac"]["confidence"] == 0.999
     spectral = methods.method_settings("spectral")
-    assert set(spectral) == {"option", "criteria"}
+    assert set(spectral) == {"call", "option", "criteria", "cloud", "refinement"}
+    assert spectral["call"] == "registration_spectral"
     assert spectral["criteria"]["max_iteration"] > 0
+    assert spectral["refinement"]["distance"] == 0.4
+    found = methods.method_settings("spectral_global")
+    assert found["call"] == "registration_spectral_global"
+    assert found["search"]["climbs"] == 4
+    assert methods.method_settings("spectral_global_unrefined")["refinement"] is None
+    assert methods.method_settings("spectral_paper")["option"]["egi_binned"] is True
 
 
 def test_spectral_variant_reports_its_trajectory(monkeypatch):

@@ -59,6 +59,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--limit", type=int, metavar="N", help="only the first N instances of each suite"
     )
     parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    _add_success_and_plugin_arguments(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=eval_command)
+
+
+def _add_success_and_plugin_arguments(parser: argparse.ArgumentParser) -> None:
+    """The success thresholds and ``--plugin``."""
     parser.add_argument(
         "--max-rotation-deg",
         type=float,
@@ -81,8 +88,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="MODULE",
         help="module(s) to import first, e.g. one registering more methods",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.set_defaults(func=eval_command)
 
 
 def eval_command(args: argparse.Namespace) -> int:

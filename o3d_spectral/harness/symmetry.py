@@ -116,18 +116,9 @@ class Symmetry:
         return (rotations[:, None] @ self.discrete[None]).reshape(-1, 4, 4)
 
 
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """3x3 rotation by ``angle`` (radians) about unit ``axis`` (Rodrigues)."""
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
-
-
 def _about_point(axis: np.ndarray, angle: float, center: np.ndarray) -> np.ndarray:
     """4x4 rotation by ``angle`` about the line through ``center`` along ``axis``."""
-    t = np.eye(4)
-    t[:3, :3] = _rotation(axis, angle)
-    t[:3, 3] = center - t[:3, :3] @ center
-    return t
+    return so3.about_pivot(so3.exp(np.asarray(axis) * angle), np.zeros(3), center)
 
 
 def _closure(generators: list[np.ndarray]) -> np.ndarray:
