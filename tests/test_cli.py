@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import open3d as o3d
+import pytest
 
 import o3d_spectral
 from o3d_spectral.cli import main
@@ -86,6 +87,7 @@ def test_library_logs_nothing_unless_configured():
 
 
 def test_demo_writes_plot_and_result(tmp_path, capsys):
+    pytest.importorskip("matplotlib", reason="the harness extra is not installed")
     assert main(["demo", "--object", "cracker_box", "--seed", "1", "--out", str(tmp_path)]) == 0
     assert "rotation error" in capsys.readouterr().out
     assert (tmp_path / "convergence.png").stat().st_size > 10_000

@@ -3,7 +3,10 @@
 import json
 
 import pytest
-from pandas.testing import assert_frame_equal
+
+pytest.importorskip("pandas", reason="the harness extra is not installed")
+pytest.importorskip("matplotlib", reason="the harness extra is not installed")
+from pandas.testing import assert_frame_equal  # noqa: E402
 
 from o3d_spectral.cli import main
 from o3d_spectral.harness import load_results, method_names, method_settings, run_eval
