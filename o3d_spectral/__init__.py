@@ -18,21 +18,25 @@ conventions.
 
 import logging as _logging
 from importlib import metadata as _metadata
+from typing import TYPE_CHECKING
 
-from .law import IterationRecord
-from .options import (
-    CloudOption,
-    GlobalSearchOption,
-    RefinementOption,
-    SpectralConvergenceCriteria,
-    SpectralRegistrationOption,
-)
-from .registration import (
-    SpectralRegistrationResult,
-    registration_spectral,
-    registration_spectral_global,
-)
-from .stepper import Evaluation, MovingCloud, SpectralStepper
+from ._lazy import lazy_attributes
+
+if TYPE_CHECKING:  # the names below, for type checkers; imported on first access at run time
+    from .law import IterationRecord
+    from .options import (
+        CloudOption,
+        GlobalSearchOption,
+        RefinementOption,
+        SpectralConvergenceCriteria,
+        SpectralRegistrationOption,
+    )
+    from .registration import (
+        SpectralRegistrationResult,
+        registration_spectral,
+        registration_spectral_global,
+    )
+    from .stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = [
     "registration_spectral",
@@ -48,6 +52,31 @@ __all__ = [
     "MovingCloud",
     "Evaluation",
 ]
+
+# Imported on first access, so that a tool using only a subpackage (``o3d-spectral report``
+# reads tables: pandas and matplotlib) does not wait seconds for Open3D.
+__getattr__ = lazy_attributes(
+    __name__,
+    {
+        "registration_spectral": "registration",
+        "registration_spectral_global": "registration",
+        "SpectralRegistrationResult": "registration",
+        "SpectralRegistrationOption": "options",
+        "GlobalSearchOption": "options",
+        "RefinementOption": "options",
+        "CloudOption": "options",
+        "SpectralConvergenceCriteria": "options",
+        "IterationRecord": "law",
+        "SpectralStepper": "stepper",
+        "MovingCloud": "stepper",
+        "Evaluation": "stepper",
+    },
+)
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])
+
 
 try:  # the installed distribution's version, so it cannot drift from pyproject.toml
     __version__ = _metadata.version("o3d-spectral")

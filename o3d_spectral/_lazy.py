@@ -5,6 +5,7 @@ without an import cycle through their ``__init__``)."""
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from collections.abc import Callable
 from typing import Any
 
@@ -15,6 +16,10 @@ def lazy_attributes(package: str, where: dict[str, str]) -> Callable[[str], Any]
 
     def __getattr__(name: str) -> Any:
         if name not in where:
+            # A submodule not imported yet (``import pkg; pkg.sub``), as an eager package
+            # that had imported it would have it.
+            if importlib.util.find_spec(f"{package}.{name}") is not None:
+                return importlib.import_module(f"{package}.{name}")
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         return getattr(importlib.import_module(f"{package}.{where[name]}"), name)
 

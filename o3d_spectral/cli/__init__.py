@@ -89,31 +89,46 @@ def _log_level(args: argparse.Namespace) -> int:
 
 
 @contextlib.contextmanager
-def _logging_to_stderr(level: int) -> Iterator[None]:
+def _logging_to_stderr(level: int, *, open3d: bool = True) -> Iterator[None]:
     """Show the package logger's records from ``level`` up on stderr, and Open3D's messages
     from the matching level, while a command runs; restored afterwards, since ``main`` may
-    be called several times in one process (tests, eval/run_benchmark.py)."""
+    be called several times in one process (tests, eval/run_benchmark.py). ``open3d``:
+    False for a command that does not use Open3D (``report``: its import takes seconds)."""
+    if not open3d:
+        with _package_logging(level):
+            yield
+        return
     import open3d as o3d
 
-    package = logging.getLogger("o3d_spectral")
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter(LOG_FORMAT))
-    saved = package.level, package.propagate, o3d.utility.get_verbosity_level()
+    saved = o3d.utility.get_verbosity_level()
     verbosity = o3d.utility.VerbosityLevel
-    package.addHandler(handler)
-    package.setLevel(level)
-    package.propagate = False  # printed once even if something configured the root logger
     o3d.utility.set_verbosity_level({
         logging.ERROR: verbosity.Error, logging.WARNING: verbosity.Warning,
         logging.INFO: verbosity.Info, logging.DEBUG: verbosity.Debug,
     }[level])
+    try:
+        with _package_logging(level):
+            yield
+    finally:
+        o3d.utility.set_verbosity_level(saved)
+
+
+@contextlib.contextmanager
+def _package_logging(level: int) -> Iterator[None]:
+    """The package logger's records from ``level`` up on stderr while the block runs."""
+    package = logging.getLogger("o3d_spectral")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(LOG_FORMAT))
+    saved = package.level, package.propagate
+    package.addHandler(handler)
+    package.setLevel(level)
+    package.propagate = False  # printed once even if something configured the root logger
     try:
         yield
     finally:
         package.removeHandler(handler)
         package.setLevel(saved[0])
         package.propagate = saved[1]
-        o3d.utility.set_verbosity_level(saved[2])
 
 
 def _one_line(error: BaseException) -> str:
@@ -142,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exit_:  # --help, --version, or a usage error argparse printed
         return exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
-    with _logging_to_stderr(_log_level(args)):
+    with _logging_to_stderr(_log_level(args), open3d=getattr(args, "open3d", True)):
         log.debug("arguments: %s", {k: v for k, v in vars(args).items() if k != "func"})
         start = time.perf_counter()
         try:

@@ -21,7 +21,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("results", metavar="RESULTS", help="eval run folder or its results.jsonl")
     parser.add_argument("--out", required=True, metavar="DIR", help="folder for tables and plots")
-    parser.set_defaults(func=report_command)
+    parser.set_defaults(func=report_command, open3d=False)  # tables only: no Open3D import
 
 
 def report_command(args: argparse.Namespace) -> int:

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness.methods import method_names
 from o3d_spectral.harness.records import CURVE_COLUMNS
 
 if TYPE_CHECKING:
@@ -29,6 +28,7 @@ __all__ = [
     "PAPER_CONDITIONS",
     "Table",
     "ambiguity_table",
+    "by_suite_and_method",
     "comparison_table",
     "method_order",
     "paper_table",
@@ -68,8 +68,16 @@ class Table:
 
 
 def method_order(frame: pd.DataFrame) -> list[str]:
+    """The methods of ``frame``: in the order the run named them (``frame.attrs["methods"]``,
+    set by :func:`~o3d_spectral.harness.records.load_results`), else the registry's, then
+    any others by name."""
     present = list(dict.fromkeys(frame["method"]))
-    known = [m for m in method_names() if m in present]
+    order = frame.attrs.get("methods")
+    if not order:  # the registry imports Open3D: only when the run does not say
+        from o3d_spectral.harness.methods import method_names
+
+        order = method_names()
+    known = [m for m in order if m in present]
     return known + sorted(m for m in present if m not in known)
 
 
@@ -82,6 +90,12 @@ def suite_order(frame: pd.DataFrame) -> list[tuple[str, str]]:
 
 def suite_label(suite: str, condition: str) -> str:
     return f"{PAPER_CONDITIONS[condition]} ({suite})" if condition in PAPER_CONDITIONS else suite
+
+
+def by_suite_and_method(frame: pd.DataFrame) -> dict[tuple[str, str], pd.DataFrame]:
+    """The runs of each (suite, method) pair present, split once (a boolean mask per pair
+    scanned every row again for each table cell and plot line)."""
+    return {key: runs for key, runs in frame.groupby(["suite", "method"], sort=False)}
 
 
 def spectral_methods(frame: pd.DataFrame) -> list[str]:
@@ -99,6 +113,8 @@ def paper_table(frame: pd.DataFrame) -> Table:
     """The paper's Table 1: mean squared symmetry-aware errors per method and suite."""
     pandas = require("pandas")
     suites = suite_order(frame)
+    cells = by_suite_and_method(frame)
+    empty = frame.iloc[:0]
     rows = []
     for method in method_order(frame):
         for column, label in (
@@ -107,7 +123,7 @@ def paper_table(frame: pd.DataFrame) -> Table:
         ):
             row = {"method": method, "error": label}
             for suite, condition in suites:
-                cell = frame[(frame["method"] == method) & (frame["suite"] == suite)]
+                cell = cells.get((suite, method), empty)
                 row[suite_label(suite, condition)] = cell[column].mean()
             rows.append(row)
     result = pandas.DataFrame(rows)
@@ -123,11 +139,12 @@ def paper_table(frame: pd.DataFrame) -> Table:
 def summary_table(frame: pd.DataFrame) -> Table:
     """Per suite and method: success rate, median errors over successes, time."""
     pandas = require("pandas")
+    cells = by_suite_and_method(frame)
     rows = []
     for suite, condition in suite_order(frame):
         for method in method_order(frame):
-            runs = frame[(frame["suite"] == suite) & (frame["method"] == method)]
-            if runs.empty:
+            runs = cells.get((suite, method))
+            if runs is None:
                 continue
             wins = runs[runs["success"].astype(bool)]
             failed = runs["error"].notna().sum() if "error" in runs else 0
