@@ -1,7 +1,5 @@
 """A two-instance suite end to end through ``eval`` and ``report``; resuming; workers."""
 
-import json
-
 import pytest
 
 pytest.importorskip("pandas", reason="the harness extra is not installed")
@@ -10,7 +8,7 @@ from pandas.testing import assert_frame_equal  # noqa: E402
 
 from o3d_spectral.cli import main
 from o3d_spectral.harness import load_results, method_names, method_settings, run_eval
-from o3d_spectral.harness.records import CONFIG_FILE, RESULTS_FILE, TABLE_FILE
+from o3d_spectral.harness.records import TABLE_FILE, read_config, result_files
 from o3d_spectral.synthetic.suite import make_suite
 
 VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
@@ -32,7 +30,9 @@ def run_dir(suite_dir, tmp_path_factory):
 
 
 def _lines(run):
-    return (run / RESULTS_FILE).read_text().splitlines()
+    """The complete rows of every session's results file."""
+    texts = [file.read_text() for file in result_files(run)]
+    return [line for text in texts for line in text[: text.rfind("\n") + 1].splitlines()]
 
 
 def assert_same_rows(a, b):
@@ -45,7 +45,9 @@ def assert_same_rows(a, b):
 
 def test_eval_writes_one_row_per_instance_and_method(run_dir):
     frame = load_results(run_dir)
-    assert len(frame) == 2 * len(method_names())
+    # A tuned method skips the tuning split (instance 0 of 2).
+    tuned = [m for m in method_names() if "tuning_split" in method_settings(m)]
+    assert len(frame) == 2 * len(method_names()) - len(tuned)
     assert set(frame["method"]) == set(method_names())
     assert frame["error"].isna().all()
     table = (run_dir / TABLE_FILE).read_text().splitlines()
@@ -64,7 +66,7 @@ def test_eval_writes_one_row_per_instance_and_method(run_dir):
     spectral = frame[frame["method"] == "spectral"]
     assert (spectral["curve_rotation_deg"].map(len) == spectral["iterations"]).all()
     assert spectral["rotation_gradient_norm_rad"].notna().all()
-    config = json.loads((run_dir / CONFIG_FILE).read_text())
+    config = read_config(run_dir)
     assert config["sessions"][0]["registrations"] == len(frame)
 
 
@@ -72,7 +74,7 @@ def test_config_records_the_commit_versions_and_method_settings(suite_dir, tmp_p
     chosen = ["icp_point_to_point", "fgr"]
     run_eval([suite_dir], tmp_path, methods=chosen, limit=1, progress=False)
     run_eval([suite_dir], tmp_path, methods=["fpfh_ransac"], limit=1, progress=False)
-    sessions = json.loads((tmp_path / CONFIG_FILE).read_text())["sessions"]
+    sessions = read_config(tmp_path)["sessions"]
     assert len(sessions) == 2
     for session, methods in zip(sessions, [chosen, ["fpfh_ransac"]], strict=True):
         assert "commit" in session
@@ -115,13 +117,14 @@ def test_resume_skips_done_pairs_and_reruns_identically(suite_dir, run_dir):
     lines = _lines(run_dir)
     before = load_results(run_dir)
     # Interrupted: two rows missing and a third cut off halfway through.
-    (run_dir / RESULTS_FILE).write_text("\n".join(lines[:-3]) + "\n" + lines[-3][:40])
+    (file,) = result_files(run_dir)
+    file.write_text("\n".join(lines[:-3]) + "\n" + lines[-3][:40])
     run_eval([suite_dir], run_dir, progress=False)
     assert len(_lines(run_dir)) == len(lines)
     assert_same_rows(load_results(run_dir), before)
     run_eval([suite_dir], run_dir, progress=False)
     assert len(_lines(run_dir)) == len(lines)
-    sessions = json.loads((run_dir / CONFIG_FILE).read_text())["sessions"]
+    sessions = read_config(run_dir)["sessions"]
     assert [s["registrations"] for s in sessions] == [len(lines), 3, 0]
 
 

@@ -11,10 +11,16 @@ EXAMPLES = (
     "--out out/quick\n"
     "  o3d-spectral eval --suite suites/full --plugin my_methods --methods teaser --out "
     "results/run   # adds a method to a finished run\n"
+    "  o3d-spectral eval --suite suites/full --cluster local --workers 2 --out results/run\n"
+    "  o3d-spectral eval --suite suites/full --shard 0/2 --out /shared/run   # machine 1\n"
+    "  o3d-spectral eval --suite suites/full --shard 1/2 --out /shared/run   # machine 2\n"
     "\n"
     "Run it again with the same --out to resume: done (instance, method) pairs are skipped.\n"
+    "Several sessions may write one --out at once (shards, machines); report merges them.\n"
     "Methods: spectral, spectral_paper, spectral_global, icp_point_to_point, icp_point_to_plane,\n"
-    "fpfh_ransac, fgr, and any a plugin registers (an unknown name lists them)."
+    "fpfh_ransac, fgr, fpfh_ransac_tuned (not on the tuning split, index % 4 == 0),\n"
+    "kiss_matcher and small_gicp (pip install 'o3d-spectral[peers]'), and any a plugin\n"
+    "registers (an unknown name lists them)."
 )
 
 
@@ -25,8 +31,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="run registration methods on scene suites, one results row per instance",
         description=(
             "Run every method on every instance of the suites (make-suite output) and append "
-            "one row per (instance, method) to OUT/results.jsonl; OUT/results.csv is the "
-            "table. Each worker runs one registration at a time on one thread."
+            "one row per (instance, method) to OUT/results/SESSION.jsonl (the session's "
+            "settings in OUT/sessions/SESSION.json); OUT/results.csv is the table of all "
+            "sessions. Each worker runs one registration at a time on one thread."
         ),
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -46,22 +53,52 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--out", required=True, metavar="DIR", help="run folder (resumed if present)"
     )
     parser.add_argument(
-        "--workers", type=int, default=1, metavar="N", help="worker processes (default 1)"
-    )
-    parser.add_argument(
         "--voxel-size",
         type=float,
         default=0.008,
         metavar="M",
         help="voxel edge shared by all methods, metres (default 0.008, the paper's)",
     )
-    parser.add_argument(
-        "--limit", type=int, metavar="N", help="only the first N instances of each suite"
-    )
+    _add_executor_and_selection_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
     _add_success_and_plugin_arguments(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=eval_command)
+
+
+def _add_executor_and_selection_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the registrations run (``--workers``, ``--cluster``) and which instances
+    (``--limit``, ``--sample``, ``--shard``)."""
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="worker processes (default 1); with --cluster local, the cluster's workers",
+    )
+    parser.add_argument(
+        "--cluster",
+        metavar="ADDRESS",
+        help="run on a Dask cluster: 'local' (a LocalCluster of --workers one-thread "
+        "workers), a scheduler address (tcp://host:8786) or a scheduler file; needs "
+        "pip install 'o3d-spectral[cluster]'",
+    )
+    chosen = parser.add_mutually_exclusive_group()
+    chosen.add_argument(
+        "--limit", type=int, metavar="N", help="only the first N instances of each suite"
+    )
+    chosen.add_argument(
+        "--sample",
+        type=int,
+        metavar="N",
+        help="only N instances of each suite drawn at random (seeded by --seed)",
+    )
+    parser.add_argument(
+        "--shard",
+        metavar="I/N",
+        help="only shard I of N of the instances (by a hash of each instance); N sessions "
+        "with shards 0/N .. N-1/N, into the same --out, run each instance once",
+    )
 
 
 def _add_success_and_plugin_arguments(parser: argparse.ArgumentParser) -> None:
@@ -93,7 +130,15 @@ def _add_success_and_plugin_arguments(parser: argparse.ArgumentParser) -> None:
 def eval_command(args: argparse.Namespace) -> int:
     import time
 
+    from o3d_spectral.cli import UsageError
     from o3d_spectral.harness import SuccessCriteria, run_eval
+    from o3d_spectral.harness.selection import parse_shard
+
+    if args.shard is not None:
+        try:
+            parse_shard(args.shard)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
 
     start = time.perf_counter()
     table = run_eval(
@@ -104,6 +149,9 @@ def eval_command(args: argparse.Namespace) -> int:
         voxel_size=args.voxel_size,
         seed=args.seed,
         limit=args.limit,
+        sample=args.sample,
+        shard=args.shard,
+        cluster=args.cluster,
         criteria=SuccessCriteria(
             max_rotation_deg=args.max_rotation_deg, max_translation_m=args.max_translation
         ),

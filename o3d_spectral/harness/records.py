@@ -1,54 +1,86 @@
 """What an evaluation run folder holds, and how it is read and written.
 
-* ``config.json``: voxel size, seed, success thresholds, suites, methods, and one entry per
-  session: start, wall time, registrations done, workers, machine, the commit of the code
-  (``git rev-parse HEAD``, or null outside a checkout), the versions of o3d-spectral,
-  Open3D, NumPy, SciPy, pyFFTW and Python, and the settings of every method run;
-* ``results.jsonl``: one JSON object per (instance, method), appended as soon as it is
-  done, so an interrupted run resumes where it stopped;
-* ``results.csv``: the same rows as a table (without the convergence curves), sorted by
-  suite, instance and method.
+Several sessions may write one run folder at once (shards on several machines, a second
+``eval`` adding methods), so no file is written by two of them:
+
+* ``sessions/ID.json``: one file per session (``ID``: start time, host, process, a random
+  token), written when it starts and rewritten when it ends: the run's settings (voxel
+  size, seed, success thresholds), its suites and methods, and the session's own record:
+  start, wall time, registrations done, executor and workers, shard and instance
+  selection, machine, the commit of the code (``git rev-parse HEAD``, or null outside a
+  checkout), the versions of o3d-spectral, Open3D, NumPy, SciPy, pyFFTW and Python, and
+  the settings of every method run;
+* ``results/ID.jsonl``: the session's rows, one JSON object per (instance, method),
+  appended (one ``write`` per row, ``O_APPEND``) as soon as it is done, so an interrupted
+  run resumes where it stopped;
+* ``results.csv``: every session's rows as a table (without the convergence curves),
+  sorted by suite, instance and method.
+
+:func:`read_config` merges the sessions' files and :func:`load_results` their rows. Run
+folders written before sessions had their own files (``config.json`` and one
+``results.jsonl``) are read the same way, and resumed into the new layout. Files that are
+rewritten (a session's record, ``results.csv``) are written to a temporary file in the same
+folder and moved over the old one (``os.replace``), so a reader never sees half a file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import datetime
 import importlib
 import json
 import os
 import platform
+import secrets
+import socket
 import subprocess
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness.methods import method_settings
-from o3d_spectral.synthetic.suite import Suite
+
+if TYPE_CHECKING:
+    from o3d_spectral.synthetic.suite import Suite
 
 __all__ = [
     "CONFIG_FILE",
     "CURVE_COLUMNS",
     "KEY",
+    "RESULTS_DIR",
     "RESULTS_FILE",
+    "SESSIONS_DIR",
     "TABLE_FILE",
+    "append_row",
+    "atomic_write_text",
     "commit",
     "done_keys",
     "load_results",
     "machine",
-    "prepare_config",
+    "new_session_id",
+    "open_results",
+    "prepare_session",
+    "read_config",
+    "result_files",
     "session_record",
     "suite_name",
     "versions",
-    "write_config",
     "write_results_table",
+    "write_session",
 ]
 
-CONFIG_FILE = "config.json"
-RESULTS_FILE = "results.jsonl"
+CONFIG_FILE = "config.json"  # runs before per-session files (read only)
+RESULTS_FILE = "results.jsonl"  # runs before per-session files (read only)
+SESSIONS_DIR = "sessions"
+RESULTS_DIR = "results"
 TABLE_FILE = "results.csv"
 #: Per-iteration symmetry-aware errors of iterative methods (lists; not in the CSV table).
 CURVE_COLUMNS = ("curve_rotation_deg", "curve_translation_m")
 #: What identifies a results row.
 KEY = ("suite", "index", "method")
+#: The settings every session of a run must share.
+SETTINGS = ("voxel_size", "seed", "criteria")
 #: Version of each package, by the key it has in a session's ``versions``.
 _PACKAGES = {
     "o3d_spectral": "o3d_spectral",
@@ -64,20 +96,76 @@ def suite_name(suite: Suite) -> str:
     return suite.root.resolve().name
 
 
-def prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list[str]) -> dict:
-    """Read the run's config (checking that its settings match) or start a new one."""
-    path = out / CONFIG_FILE
-    if path.is_file():
-        config = json.loads(path.read_text())
-        for key, value in settings.items():
-            if config.get(key) != value:
-                raise ValueError(
-                    f"out {str(out)!r} holds a run with {key}={config.get(key)!r}, not "
-                    f"{value!r}; resume with the same settings or choose another --out"
-                )
-    else:
-        config = {**settings, "suites": [], "methods": [], "sessions": []}
-    known = {entry["name"]: entry for entry in config["suites"]}
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and
+    ``os.replace``: readers see the old file or the new one, never a part."""
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as sink:
+            sink.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise
+
+
+def new_session_id() -> str:
+    """A name no other session has, sorting by start time: ``20260101T120000-host-pid-token``."""
+    now = datetime.datetime.now().strftime("%Y%m%dT%H%M%S")
+    host = "".join(c if c.isalnum() else "-" for c in socket.gethostname())[:32]
+    return f"{now}-{host}-{os.getpid()}-{secrets.token_hex(3)}"
+
+
+def read_config(out: str | Path) -> dict:
+    """The run's settings, suites, methods and sessions, merged from every session's file
+    (and a ``config.json`` of an older run); ``{}`` for a folder without any.
+
+    Sessions are sorted by start; suites and methods are listed in the order sessions first
+    named them.
+    """
+    out = Path(out)
+    documents = []
+    legacy = out / CONFIG_FILE
+    if legacy.is_file():
+        documents.append(json.loads(legacy.read_text()))
+    for path in sorted((out / SESSIONS_DIR).glob("*.json")):
+        document = json.loads(path.read_text())
+        documents.append(document | {"sessions": [document["session"]]})
+    if not documents:
+        return {}
+    config = {key: documents[0].get(key) for key in SETTINGS}
+    config |= {"suites": [], "methods": [], "sessions": []}
+    for document in documents:
+        known = {entry["name"] for entry in config["suites"]}
+        config["suites"] += [s for s in document.get("suites", []) if s["name"] not in known]
+        config["methods"] += [m for m in document.get("methods", []) if m not in config["methods"]]
+        config["sessions"] += document.get("sessions", [])
+    config["sessions"].sort(key=lambda s: (s.get("started") or "", s.get("id") or ""))
+    return config
+
+
+def _suite_entry(suite: Suite) -> dict:
+    return {
+        "name": suite_name(suite),
+        "path": str(suite.root.resolve()),
+        "condition": suite.condition,
+        "n": len(suite),
+        "seed": suite.manifest["seed"],
+    }
+
+
+def prepare_session(out: Path, suites: list[Suite], settings: dict, methods: list[str]) -> dict:
+    """Check a new session against the run in ``out`` (same settings; a suite of a known
+    name is the same suite); the session's entry: ``settings``, its suites and methods."""
+    config = read_config(out)
+    for key, value in settings.items():
+        if config and config.get(key) != value:
+            raise ValueError(
+                f"out {str(out)!r} holds a run with {key}={config.get(key)!r}, not "
+                f"{value!r}; resume with the same settings or choose another --out"
+            )
+    known = {entry["name"]: entry for entry in config.get("suites", [])}
     for suite in suites:
         entry = known.get(suite_name(suite))
         if entry and (entry["condition"], entry["seed"]) != (
@@ -90,34 +178,61 @@ def prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list
                 f"same name that is {entry['condition']} with seed {entry['seed']}; choose "
                 "another --out"
             )
-        if entry is None:
-            config["suites"].append(
-                {
-                    "name": suite_name(suite),
-                    "path": str(suite.root.resolve()),
-                    "condition": suite.condition,
-                    "n": len(suite),
-                    "seed": suite.manifest["seed"],
-                }
-            )
-    config["methods"] += [m for m in methods if m not in config["methods"]]
-    return config
+    return {**settings, "suites": [_suite_entry(s) for s in suites], "methods": list(methods)}
 
 
-def write_config(out: Path, config: dict) -> None:
-    (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
+def write_session(out: Path, entry: dict, record: dict) -> Path:
+    """Write (or rewrite) the session file of ``record["id"]``: ``entry`` (from
+    :func:`prepare_session`) and the session's ``record``."""
+    folder = out / SESSIONS_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{record['id']}.json"
+    atomic_write_text(path, json.dumps(entry | {"session": record}, indent=1) + "\n")
+    return path
 
 
-def done_keys(results: Path) -> set[tuple]:
-    """Keys of the rows already in ``results``; a last row cut off by a kill is removed
-    (it will be run again)."""
-    if not results.is_file():
-        return set()
-    text = results.read_text()
-    complete = text[: text.rfind("\n") + 1]
-    if complete != text:
-        results.write_text(complete)
-    return {tuple(json.loads(line)[k] for k in KEY) for line in complete.splitlines() if line}
+def result_files(path: str | Path) -> list[Path]:
+    """The files holding a run's rows: an older run's ``results.jsonl``, then every
+    session's file by start (``path`` may also be one file)."""
+    path = Path(path)
+    if not path.is_dir():
+        return [path] if path.is_file() else []
+    legacy = [path / RESULTS_FILE] if (path / RESULTS_FILE).is_file() else []
+    return legacy + sorted((path / RESULTS_DIR).glob("*.jsonl"))
+
+
+def _rows(file: Path) -> list[dict]:
+    """The complete rows of a results file: a last line without its newline (a session
+    killed mid-write, or one still writing) is left out."""
+    text = file.read_text()
+    return [json.loads(line) for line in text[: text.rfind("\n") + 1].splitlines() if line]
+
+
+def done_keys(out: Path) -> set[tuple]:
+    """Keys of the rows already in the run folder ``out``."""
+    return {tuple(row[k] for k in KEY) for file in result_files(out) for row in _rows(file)}
+
+
+@contextlib.contextmanager
+def open_results(out: Path, session: str) -> Iterator[int]:
+    """The session's results file, opened for appending (a file descriptor for
+    :func:`append_row`)."""
+    folder = out / RESULTS_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    descriptor = os.open(folder / f"{session}.jsonl", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    try:
+        yield descriptor
+    finally:
+        os.close(descriptor)
+
+
+def append_row(descriptor: int, row: dict) -> None:
+    """Append one row as one line, in a single ``write`` (a reader sees all of it or none;
+    a partial line left by a kill is skipped on reading)."""
+    line = (json.dumps(row) + "\n").encode()
+    written = os.write(descriptor, line)
+    while written < len(line):  # a short write (a full disk, a signal): finish the line
+        written += os.write(descriptor, line[written:])
 
 
 def machine() -> dict:
@@ -176,9 +291,11 @@ def commit() -> str | None:
 
 
 def session_record(methods: list[str], **counts) -> dict:
-    """One session's entry in ``config["sessions"]``: ``counts`` (start, seconds,
-    registrations, complete, workers), then the machine, commit, package versions and the
-    settings of each method of ``methods``."""
+    """One session's record: ``counts`` (id, start, seconds, registrations, complete,
+    executor, workers, ...), then the machine, commit, package versions and the settings
+    of each method of ``methods``."""
+    from o3d_spectral.harness.methods import method_settings  # Open3D: not for reports
+
     return {
         **counts,
         "machine": machine(),
@@ -191,28 +308,33 @@ def session_record(methods: list[str], **counts) -> dict:
 def write_results_table(out: Path) -> Path:
     """Write ``results.csv`` (the rows without curves and transformations) and return it."""
     table = out / TABLE_FILE
-    load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore").to_csv(
-        table, index=False
-    )
+    if not any(_rows(file) for file in result_files(out)):  # a shard with nothing to run
+        atomic_write_text(table, "")
+        return table
+    frame = load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore")
+    atomic_write_text(table, frame.to_csv(index=False))
     return table
 
 
 def load_results(path: str | Path):
-    """The rows of a run as a ``pandas.DataFrame``, sorted by suite, instance and method.
+    """The rows of a run as a ``pandas.DataFrame``, sorted by suite, instance and method
+    (a pair done twice, by concurrent sessions, once: the later session's row).
 
     Parameters
     ----------
     path : str or Path
-        A run folder, or its ``results.jsonl``.
+        A run folder (every session's rows), or one results file (``.jsonl``).
     """
     path = Path(path)
-    file = path / RESULTS_FILE if path.is_dir() else path
-    if not file.is_file():
-        raise FileNotFoundError(f"no {RESULTS_FILE} at {path}; run o3d-spectral eval first")
-    with file.open() as lines:  # json, not pandas' parser: floats stay exact
-        rows = [json.loads(line) for line in lines if line.strip()]
+    files = result_files(path)
+    if not files:
+        raise FileNotFoundError(f"no results at {path}; run o3d-spectral eval first")
+    rows = [row for file in files for row in _rows(file)]  # json: floats stay exact
     if not rows:
-        raise ValueError(f"{file} holds no results yet")
+        raise ValueError(f"{path} holds no results yet")
     frame = require("pandas").DataFrame(rows)
     frame = frame.drop_duplicates(subset=list(KEY), keep="last")
-    return frame.sort_values(list(KEY)).reset_index(drop=True)
+    frame = frame.sort_values(list(KEY)).reset_index(drop=True)
+    config = read_config(path if path.is_dir() else path.parent)
+    frame.attrs["methods"] = config.get("methods", [])  # the run's order, for the tables
+    return frame

@@ -1,12 +1,12 @@
 """The report of an evaluation run (``o3d-spectral report``): every table
 (:mod:`~o3d_spectral.harness.tables`, written by :mod:`~o3d_spectral.harness.writers` as
 Markdown, LaTeX booktabs and CSV) and plot (:mod:`~o3d_spectral.harness.figures`), and
-``report.md`` joining them with the run's settings (from its ``config.json``).
+``report.md`` joining them with the run's settings (from its sessions' records,
+:func:`~o3d_spectral.harness.records.read_config`).
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -17,7 +17,7 @@ from o3d_spectral.harness.figures import (
     plot_success_vs_angle,
     plot_times,
 )
-from o3d_spectral.harness.records import CONFIG_FILE, load_results
+from o3d_spectral.harness.records import load_results, read_config
 from o3d_spectral.harness.tables import (
     Table,
     ambiguity_table,
@@ -35,9 +35,7 @@ __all__ = ["make_report"]
 
 
 def _run_config(results: Path) -> dict:
-    folder = results if results.is_dir() else results.parent
-    path = folder / CONFIG_FILE
-    return json.loads(path.read_text()) if path.is_file() else {}
+    return read_config(results if results.is_dir() else results.parent)
 
 
 def _versions(session: dict) -> str:
@@ -55,7 +53,7 @@ def _versions(session: dict) -> str:
 def _run_section(config: dict, frame: pd.DataFrame) -> str:
     sessions = config.get("sessions", [])
     if not sessions:
-        return "Run settings unknown (no config.json next to the results).\n"
+        return "Run settings unknown (no session records next to the results).\n"
     machine = sessions[-1]["machine"]
     seconds = sum(s["seconds"] for s in sessions)
     criteria = config["criteria"]

@@ -3,31 +3,30 @@
 What the run folder holds is described in :mod:`o3d_spectral.harness.records`.
 
 Each registration runs in a worker process with one thread (``OMP_NUM_THREADS=1``), so
-results do not depend on the number of workers and times compare per core. A method's
-seed depends on the run seed, the suite (condition and seed), the instance and the method,
-never on the order of execution. Wall time is measured around the method call only.
+results do not depend on the number of workers and times compare per core. The workers are
+a local process pool or a Dask cluster (:mod:`~o3d_spectral.harness.executors`); which
+instances run is chosen by :mod:`~o3d_spectral.harness.selection` (limit, sample, shard).
+A method's seed depends on the run seed, the suite (condition and seed), the instance and
+the method, never on the order of execution nor on what runs it, so the rows are the same
+whatever runs them. Wall time is measured around the method call only.
 """
 
 from __future__ import annotations
 
-import contextlib
 import datetime
 import functools
 import importlib
-import json
-import os
 import time
 import zlib
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness.methods import get_method, method_names
+from o3d_spectral.harness.executors import dask_cluster, local_pool
+from o3d_spectral.harness.methods import get_method, method_names, method_settings
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
     convergence_curves,
@@ -37,14 +36,17 @@ from o3d_spectral.harness.metrics import (
 )
 from o3d_spectral.harness.records import (
     CURVE_COLUMNS,
-    RESULTS_FILE,
+    append_row,
     done_keys,
-    prepare_config,
+    new_session_id,
+    open_results,
+    prepare_session,
     session_record,
     suite_name,
-    write_config,
     write_results_table,
+    write_session,
 )
+from o3d_spectral.harness.selection import in_tuning_split, parse_shard, selected_indices
 from o3d_spectral.synthetic.suite import Suite, load_suite
 
 __all__ = ["run_eval", "task_seed"]
@@ -57,7 +59,6 @@ _METADATA = (
     "visible_fraction",
     "occlusion",
 )
-_SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,7 @@ def _suite(suite_dir: str) -> Suite:
     return load_suite(suite_dir)
 
 
+@functools.cache
 def _init_worker(plugins: tuple[str, ...]) -> None:
     import open3d as o3d
 
@@ -92,6 +94,12 @@ def _init_worker(plugins: tuple[str, ...]) -> None:
     o3d.utility.set_max_threads(1)
     for module in plugins:
         importlib.import_module(module)
+
+
+def _run_on_worker(task: _Task, plugins: tuple[str, ...]) -> dict:
+    """:func:`_run_task` in a Dask worker, set up (one thread, plugins) on its first task."""
+    _init_worker(plugins)
+    return _run_task(task)
 
 
 def _compact(values: Sequence[float]) -> list[float]:
@@ -136,19 +144,13 @@ def _run_task(task: _Task) -> dict:
     return row
 
 
-@contextlib.contextmanager
-def _single_threaded_children() -> Iterator[None]:
-    """Environment inherited by the worker processes started inside the block."""
-    saved = {name: os.environ.get(name) for name in _SINGLE_THREAD}
-    os.environ.update(dict.fromkeys(_SINGLE_THREAD, "1"))
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+@dataclass(frozen=True)
+class _Selection:
+    """Which instances a session runs (:func:`~o3d_spectral.harness.selection.selected_indices`)."""
+
+    limit: int | None = None
+    sample: int | None = None
+    shard: tuple[int, int] | None = None
 
 
 def _tasks(
@@ -159,17 +161,28 @@ def _tasks(
     seed: int,
     voxel_size: float,
     criteria: SuccessCriteria,
-    limit: int | None,
+    selection: _Selection,
 ) -> list[_Task]:
+    # A method tuned on the tuning split is run (and reported) on the other instances only.
+    tuned = {m for m in methods if "tuning_split" in method_settings(m)}
     tasks = []
     for suite in suites:
-        name = suite_name(suite)
-        for index in range(len(suite) if limit is None else min(limit, len(suite))):
+        name, suite_seed = suite_name(suite), suite.manifest["seed"]
+        indices = selected_indices(
+            len(suite),
+            condition=suite.condition,
+            suite_seed=suite_seed,
+            limit=selection.limit,
+            sample=selection.sample,
+            seed=seed,
+            shard=selection.shard,
+        )
+        for index in indices:
             condition = suite.manifest["instances"][index]["condition"]
             for method in methods:
-                if (name, index, method) in done:
+                if (name, index, method) in done or (method in tuned and in_tuning_split(index)):
                     continue
-                method_seed = task_seed(seed, condition, suite.manifest["seed"], index, method)
+                method_seed = task_seed(seed, condition, suite_seed, index, method)
                 tasks.append(
                     _Task(str(suite.root), name, index, method, method_seed, voxel_size, criteria)
                 )
@@ -177,24 +190,34 @@ def _tasks(
 
 
 def _execute(
-    tasks: list[_Task], *, workers: int, plugins: tuple[str, ...], progress: bool
+    tasks: list[_Task],
+    *,
+    workers: int,
+    plugins: tuple[str, ...],
+    progress: bool,
+    cluster: str | None,
+    session: dict,
 ) -> Iterator[dict]:
-    """Results rows of ``tasks`` as they complete, from single-threaded worker processes."""
+    """Results rows of ``tasks`` as they complete, from single-threaded workers: a local
+    process pool, or the Dask cluster at ``cluster``; ``session["workers"]`` is set to the
+    number of workers."""
     bar = require("tqdm").tqdm(total=len(tasks), desc="eval", unit="reg", disable=not progress)
-    with _single_threaded_children():
-        pool = ProcessPoolExecutor(
-            max_workers=workers,
-            mp_context=get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(plugins,),
-        )
-        try:
-            for future in as_completed([pool.submit(_run_task, task) for task in tasks]):
-                yield future.result()
-                bar.update()
-        finally:  # on an interrupt, drop the queued tasks instead of running them all
-            pool.shutdown(wait=True, cancel_futures=True)
-            bar.close()
+    try:
+        if cluster is None:
+            with local_pool(workers, _init_worker, plugins) as submit:
+                yield from _counted(submit(_run_task, tasks), bar)
+        else:
+            with dask_cluster(cluster, workers, plugins) as (submit, count):
+                session["workers"] = count
+                yield from _counted(submit(_run_on_worker, tasks), bar)
+    finally:
+        bar.close()
+
+
+def _counted(rows: Iterator[dict], bar) -> Iterator[dict]:
+    for row in rows:
+        yield row
+        bar.update()
 
 
 def _inputs(
@@ -203,7 +226,7 @@ def _inputs(
     *,
     workers: int,
     voxel_size: float,
-    limit: int | None,
+    selection: _Selection,
     plugins: Sequence[str],
 ) -> tuple[list[str], list[Suite]]:
     """Check the arguments of :func:`run_eval`, import the plugins; the method names and
@@ -214,8 +237,12 @@ def _inputs(
         raise ValueError(f"workers must be >= 1, got {workers}")
     if not voxel_size > 0:
         raise ValueError(f"voxel_size must be positive (metres), got {voxel_size}")
-    if limit is not None and limit < 1:
-        raise ValueError(f"limit must be >= 1, got {limit}")
+    for name in ("limit", "sample"):
+        value = getattr(selection, name)
+        if value is not None and value < 1:
+            raise ValueError(f"{name} must be >= 1, got {value}")
+    if selection.limit is not None and selection.sample is not None:
+        raise ValueError("give limit or sample, not both")
     for module in plugins:
         importlib.import_module(module)
     methods = list(method_names() if methods is None else methods)
@@ -230,36 +257,35 @@ def _inputs(
 
 def _session(
     out: Path,
-    config: dict,
+    entry: dict,
     tasks: list[_Task],
-    methods: list[str],
     *,
-    workers: int,
+    record: dict,
+    cluster: str | None,
     plugins: tuple[str, ...],
     progress: bool,
 ) -> None:
-    """Run ``tasks``, appending each row to ``results.jsonl`` as it comes, then record the
-    session in ``config.json`` (also when interrupted)."""
-    started, start = datetime.datetime.now().isoformat(timespec="seconds"), time.perf_counter()
-    done = 0
+    """Run ``tasks``, appending each row to the session's results file as it comes; the
+    session's file is written first and again at the end (also when interrupted)."""
+    record = session_record(entry["methods"], **record)
+    write_session(out, entry, record)
+    start, done = time.perf_counter(), 0
     try:
-        with (out / RESULTS_FILE).open("a") as sink:
-            for row in _execute(tasks, workers=workers, plugins=plugins, progress=progress):
-                sink.write(json.dumps(row) + "\n")
-                sink.flush()
+        with open_results(out, record["id"]) as sink:
+            for row in _execute(
+                tasks,
+                workers=record["workers"],
+                plugins=plugins,
+                progress=progress,
+                cluster=cluster,
+                session=record,
+            ):
+                append_row(sink, row)
                 done += 1
     finally:  # an interrupted session still counts its time and registrations
-        config["sessions"].append(
-            session_record(
-                methods,
-                started=started,
-                seconds=round(time.perf_counter() - start, 1),
-                registrations=done,
-                complete=done == len(tasks),
-                workers=workers,
-            )
-        )
-        write_config(out, config)
+        record |= {"seconds": round(time.perf_counter() - start, 1), "registrations": done}
+        record["complete"] = done == len(tasks)
+        write_session(out, entry, record)
 
 
 def run_eval(
@@ -271,14 +297,19 @@ def run_eval(
     voxel_size: float = 0.008,
     seed: int = 0,
     limit: int | None = None,
+    sample: int | None = None,
+    shard: str | tuple[int, int] | None = None,
+    cluster: str | None = None,
     criteria: SuccessCriteria | None = None,
     plugins: Sequence[str] = (),
     progress: bool = True,
 ) -> Path:
     """Run ``methods`` on the instances of ``suites``; results go to ``out_dir``.
 
-    Pairs (instance, method) already in ``out_dir/results.jsonl`` are skipped, so calling
-    it again resumes an interrupted run, or adds methods or suites to a finished one.
+    Pairs (instance, method) already in ``out_dir`` are skipped, so calling it again
+    resumes an interrupted run, or adds methods or suites to a finished one. Several calls
+    (processes, machines) may write one ``out_dir`` at once: each session writes its own
+    files (:mod:`~o3d_spectral.harness.records`).
 
     Parameters
     ----------
@@ -290,13 +321,27 @@ def run_eval(
         Registered method names (:func:`~o3d_spectral.harness.methods.method_names`);
         all when None.
     workers : int, optional
-        Worker processes, each single-threaded; results do not depend on it.
+        Worker processes, each single-threaded (with ``cluster="local"``: the cluster's);
+        results do not depend on it.
     voxel_size : float, optional
         Voxel edge shared by all methods, metres (the paper's 8 mm by default).
     seed : int, optional
-        Run seed, from which each registration's seed is derived (:func:`task_seed`).
+        Run seed, from which each registration's seed is derived (:func:`task_seed`), and
+        the seed of ``sample``.
     limit : int, optional
         Only the first ``limit`` instances of each suite (quick runs).
+    sample : int, optional
+        Only ``sample`` instances of each suite drawn at random (seeded by ``seed`` and the
+        suite); not with ``limit``.
+    shard : str or (int, int), optional
+        ``"i/n"``: only the instances of shard ``i`` of ``n``
+        (:func:`~o3d_spectral.harness.selection.in_shard`), of those ``limit`` or
+        ``sample`` select; ``n`` sessions with shards ``0/n`` .. ``n-1/n`` run each
+        instance once.
+    cluster : str, optional
+        Run on a Dask cluster instead of a local process pool: ``"local"`` (a
+        ``LocalCluster`` of ``workers`` one-thread workers), a scheduler address
+        (``tcp://host:8786``) or a scheduler file. Needs the ``cluster`` extra.
     criteria : SuccessCriteria, optional
         Success thresholds (5 degrees and 1 cm when None).
     plugins : sequence of str, optional
@@ -309,25 +354,35 @@ def run_eval(
     Path
         The per-instance table ``out_dir/results.csv``.
     """
+    shard = parse_shard(shard) if isinstance(shard, str) else shard
+    selection = _Selection(limit, sample, None if shard is None else tuple(shard))
     methods, loaded = _inputs(
-        suites, methods, workers=workers, voxel_size=voxel_size, limit=limit, plugins=plugins
+        suites, methods, workers=workers, voxel_size=voxel_size, selection=selection,
+        plugins=plugins,
     )
     criteria = criteria or SuccessCriteria()
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     settings = {"voxel_size": voxel_size, "seed": seed, "criteria": asdict(criteria)}
-    config = prepare_config(out, loaded, settings, methods)
+    entry = prepare_session(out, loaded, settings, methods)
     tasks = _tasks(
-        loaded,
-        methods,
-        done_keys(out / RESULTS_FILE),
-        seed=seed,
-        voxel_size=voxel_size,
-        criteria=criteria,
-        limit=limit,
+        loaded, methods, done_keys(out), seed=seed, voxel_size=voxel_size, criteria=criteria,
+        selection=selection,
     )
-    write_config(out, config)
-    plugins = tuple(plugins)
-    _session(out, config, tasks, methods, workers=workers, plugins=plugins, progress=progress)
+    record = {
+        "id": new_session_id(),
+        "started": datetime.datetime.now().isoformat(timespec="seconds"),
+        "seconds": 0.0,
+        "registrations": 0,
+        "planned": len(tasks),
+        "complete": not tasks,
+        "executor": cluster or "local pool",
+        "workers": workers,
+        "selection": {"limit": limit, "sample": sample},
+        "shard": None if shard is None else f"{shard[0]}/{shard[1]}",
+    }
+    _session(
+        out, entry, tasks, record=record, cluster=cluster, plugins=tuple(plugins),
+        progress=progress,
+    )
     return write_results_table(out)

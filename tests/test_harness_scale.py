@@ -1,0 +1,215 @@
+"""Evaluation past one process (issue 20): Dask clusters, shards, concurrent sessions in one
+run folder, older run folders."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("pandas", reason="the harness extra is not installed")
+pytest.importorskip("matplotlib", reason="the harness extra is not installed")
+from pandas.testing import assert_frame_equal  # noqa: E402
+
+import o3d_spectral  # noqa: E402
+from o3d_spectral.harness import load_results, run_eval  # noqa: E402
+from o3d_spectral.harness.records import (  # noqa: E402
+    CONFIG_FILE,
+    RESULTS_FILE,
+    SESSIONS_DIR,
+    read_config,
+    result_files,
+)
+from o3d_spectral.harness.selection import in_shard, parse_shard, selected_indices  # noqa: E402
+from o3d_spectral.synthetic.suite import make_suite  # noqa: E402
+
+METHODS = ["icp_point_to_plane", "fpfh_ransac"]
+VOLATILE = ["time_s"]  # the only column allowed to differ between identical runs
+
+
+@pytest.fixture(scope="module")
+def suite_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("suites") / "full"
+    make_suite("full", 4, 0, out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def pool_run(suite_dir, tmp_path_factory):
+    """Two instances, two methods, on the local process pool (the reference rows)."""
+    out = tmp_path_factory.mktemp("pool")
+    run_eval([suite_dir], out, methods=METHODS, limit=2, progress=False)
+    return load_results(out)
+
+
+def assert_same_rows(a, b):
+    assert_frame_equal(
+        a.drop(columns=VOLATILE).reset_index(drop=True),
+        b.drop(columns=VOLATILE).reset_index(drop=True),
+    )
+
+
+# ---------------------------------------------------------------------------- Dask
+
+
+def test_local_cluster_gives_the_pool_rows(suite_dir, pool_run, tmp_path):
+    pytest.importorskip("dask.distributed", reason="the cluster extra is not installed")
+    run_eval(
+        [suite_dir], tmp_path, methods=METHODS, limit=2, cluster="local", workers=2,
+        progress=False,
+    )
+    assert_same_rows(load_results(tmp_path), pool_run)
+    (session,) = read_config(tmp_path)["sessions"]
+    assert session["executor"] == "local" and session["workers"] == 2 and session["complete"]
+
+
+def _wait_for(path: Path, process: subprocess.Popen, seconds: float) -> None:
+    deadline = time.monotonic() + seconds
+    while not path.is_file():
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise RuntimeError(f"the dask scheduler did not start (exit {process.poll()})")
+        time.sleep(0.2)
+
+
+@pytest.mark.slow
+def test_scheduler_and_workers_in_other_processes_give_the_pool_rows(
+    suite_dir, pool_run, tmp_path
+):
+    """``dask scheduler`` and ``dask worker`` started as separate processes, reached
+    through a scheduler file, as on a cluster."""
+    pytest.importorskip("dask.distributed", reason="the cluster extra is not installed")
+    dask = shutil.which("dask") or str(Path(sys.executable).with_name("dask"))
+    if not Path(dask).exists():
+        pytest.skip("the dask command is not installed")
+    scheduler_file = tmp_path / "scheduler.json"
+    root = str(Path(o3d_spectral.__file__).resolve().parents[1])  # the workers import this copy
+    env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    common = ["--scheduler-file", str(scheduler_file)]
+    logs = (tmp_path / "dask.log").open("w")
+    processes = []
+    try:
+        processes.append(subprocess.Popen(
+            [dask, "scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--dashboard-address", ":0", *common],
+            env=env, stdout=logs, stderr=subprocess.STDOUT,
+        ))
+        _wait_for(scheduler_file, processes[0], 60)
+        processes.append(subprocess.Popen(
+            [dask, "worker", "--nthreads", "1", "--nworkers", "2", "--host", "127.0.0.1",
+             "--no-dashboard", *common],
+            env=env, stdout=logs, stderr=subprocess.STDOUT,
+        ))
+        from dask.distributed import Client
+
+        with Client(scheduler_file=str(scheduler_file), timeout=60) as client:
+            client.wait_for_workers(2, timeout=120)
+        out = tmp_path / "run"
+        run_eval(
+            [suite_dir], out, methods=METHODS, limit=2, cluster=str(scheduler_file),
+            progress=False,
+        )
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+        for process in reversed(processes):
+            try:
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        logs.close()
+    assert_same_rows(load_results(out), pool_run)
+    assert read_config(out)["sessions"][0]["workers"] == 2
+
+
+def test_cluster_without_dask_says_how_to_install(monkeypatch, suite_dir, tmp_path):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_dask(name, *args, **kwargs):
+        if name.startswith(("dask", "distributed")):
+            raise ImportError(f"no module named {name}")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_dask)
+    monkeypatch.delitem(sys.modules, "dask.distributed", raising=False)
+    with pytest.raises(ImportError, match=r"o3d-spectral\[cluster\]"):
+        run_eval([suite_dir], tmp_path, methods=METHODS, limit=1, cluster="local",
+                 progress=False)
+
+
+# ---------------------------------------------------------------------------- shards
+
+
+def test_shards_partition_any_selection():
+    for count in (1, 2, 3, 5):
+        shards = [
+            selected_indices(40, condition="partial", suite_seed=3, shard=(i, count))
+            for i in range(count)
+        ]
+        assert sorted(sum(shards, [])) == list(range(40))
+    assert in_shard("full", 0, 7, (0, 1))
+    assert parse_shard("1/4") == (1, 4)
+    for bad in ("4/4", "-1/2", "1", "a/b"):
+        with pytest.raises(ValueError, match="shard"):
+            parse_shard(bad)
+
+
+def test_sample_is_seeded_and_independent_of_order():
+    first = selected_indices(240, condition="full", suite_seed=0, sample=10, seed=1)
+    assert first == selected_indices(240, condition="full", suite_seed=0, sample=10, seed=1)
+    assert first != selected_indices(240, condition="full", suite_seed=0, sample=10, seed=2)
+    assert len(set(first)) == 10 and first == sorted(first)
+    assert selected_indices(5, condition="full", suite_seed=0, limit=3) == [0, 1, 2]
+
+
+def test_two_shards_into_one_folder_give_the_unsharded_rows(suite_dir, pool_run, tmp_path):
+    for shard in ("0/2", "1/2"):
+        run_eval([suite_dir], tmp_path, methods=METHODS, limit=2, shard=shard, progress=False)
+    assert_same_rows(load_results(tmp_path), pool_run)
+    config = read_config(tmp_path)
+    assert [s["shard"] for s in config["sessions"]] == ["0/2", "1/2"]
+    assert len(result_files(tmp_path)) == 2
+
+
+def test_concurrent_sessions_keep_every_row_and_setting(suite_dir, tmp_path):
+    """Two eval processes write one folder at the same time."""
+    root = str(Path(o3d_spectral.__file__).resolve().parents[1])
+    env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    command = [sys.executable, "-m", "o3d_spectral.cli", "eval", "--suite", str(suite_dir),
+               "--out", str(tmp_path), "--quiet", "--limit", "2"]
+    runs = [
+        subprocess.Popen([*command, "--methods", method], env=env, stdout=subprocess.DEVNULL)
+        for method in METHODS
+    ]
+    assert [run.wait(timeout=300) for run in runs] == [0, 0]
+    config = read_config(tmp_path)
+    assert len(list((tmp_path / SESSIONS_DIR).glob("*.json"))) == 2
+    assert sorted(m for s in config["sessions"] for m in s["method_settings"]) == sorted(METHODS)
+    assert sorted(config["methods"]) == sorted(METHODS)
+    frame = load_results(tmp_path)
+    assert len(frame) == 4 and set(frame["method"]) == set(METHODS)
+
+
+def test_older_run_folders_are_read_and_resumed(suite_dir, tmp_path):
+    """A run written before per-session files (config.json, results.jsonl) is merged
+    with a new session's files, and resumed without running its pairs again."""
+    run_eval([suite_dir], tmp_path, methods=METHODS[:1], limit=1, progress=False)
+    (session_file,) = (tmp_path / SESSIONS_DIR).glob("*.json")
+    entry = json.loads(session_file.read_text())
+    legacy = {key: entry[key] for key in ("voxel_size", "seed", "criteria", "suites", "methods")}
+    (tmp_path / CONFIG_FILE).write_text(json.dumps(legacy | {"sessions": [entry["session"]]}))
+    (results_file,) = result_files(tmp_path)
+    results_file.rename(tmp_path / RESULTS_FILE)
+    session_file.unlink()
+    run_eval([suite_dir], tmp_path, methods=METHODS, limit=1, progress=False)
+    config = read_config(tmp_path)
+    assert [s["registrations"] for s in config["sessions"]] == [1, 1]
+    assert len(load_results(tmp_path)) == 2
+    with pytest.raises(ValueError, match="seed"):
+        run_eval([suite_dir], tmp_path, methods=METHODS, limit=1, seed=5, progress=False)
