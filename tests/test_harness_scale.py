@@ -1,5 +1,5 @@
 """Evaluation past one process (issue 20): Dask clusters, shards, concurrent sessions in one
-run folder, older run folders."""
+run folder, older run folders, and the peers from other packages."""
 
 import json
 import os
@@ -213,3 +213,24 @@ def test_older_run_folders_are_read_and_resumed(suite_dir, tmp_path):
     assert len(load_results(tmp_path)) == 2
     with pytest.raises(ValueError, match="seed"):
         run_eval([suite_dir], tmp_path, methods=METHODS, limit=1, seed=5, progress=False)
+
+
+# ---------------------------------------------------------------------------- peers
+
+
+@pytest.mark.parametrize(
+    ("method", "module"), [("kiss_matcher", "kiss_matcher"), ("small_gicp", "small_gicp")]
+)
+def test_peers_run_on_a_tiny_instance(method, module, suite_dir, tmp_path):
+    pytest.importorskip(module, reason=f"{module} is not installed")
+    run_eval([suite_dir], tmp_path, methods=[method], limit=2, progress=False)
+    frame = load_results(tmp_path)
+    assert len(frame) == 2 and frame["error"].isna().all()
+    assert frame["transformation"].map(len).eq(4).all()
+
+
+def test_tuned_fpfh_skips_the_tuning_split(suite_dir, tmp_path):
+    run_eval([suite_dir], tmp_path, methods=["fpfh_ransac_tuned"], limit=2, progress=False)
+    frame = load_results(tmp_path)
+    assert list(frame["index"]) == [1]  # index 0 is in the tuning split
+    assert frame["success"].all()

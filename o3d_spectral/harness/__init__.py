@@ -3,15 +3,20 @@
 * :mod:`~o3d_spectral.harness.symmetry`: symmetry groups of the bundled models;
 * :mod:`~o3d_spectral.harness.errors`: pose errors, plain and symmetry-aware;
 * :mod:`~o3d_spectral.harness.methods`: the methods, registered by name with their settings;
+* :mod:`~o3d_spectral.harness.peers`: KISS-Matcher, small_gicp (when installed), and
+  FPFH-RANSAC tuned on the tuning split;
 * :mod:`~o3d_spectral.harness.metrics`: per-instance errors and success;
 * :mod:`~o3d_spectral.harness.runner`: the resumable evaluation loop (``o3d-spectral eval``);
-* :mod:`~o3d_spectral.harness.records`: what a run folder holds (config, results);
+* :mod:`~o3d_spectral.harness.selection`: which instances run (limit, sample, shards);
+* :mod:`~o3d_spectral.harness.executors`: where they run (process pool, Dask cluster);
+* :mod:`~o3d_spectral.harness.records`: what a run folder holds (sessions, results);
 * :mod:`~o3d_spectral.harness.tables`, :mod:`~o3d_spectral.harness.writers`,
   :mod:`~o3d_spectral.harness.figures`: result tables, their Markdown and LaTeX, plots;
 * :mod:`~o3d_spectral.harness.report`: the report of a run (``o3d-spectral report``).
 
 The loop, tables and plots need the ``harness`` extra (pandas, matplotlib, tqdm):
-``pip install 'o3d-spectral[harness]'``. The names below are imported from their modules on
+``pip install 'o3d-spectral[harness]'``; Dask clusters the ``cluster`` extra, the peers the
+``peers`` extra. The names below are imported from their modules on
 first access, so that importing one module (the scene generator imports
 :mod:`~o3d_spectral.harness.symmetry`) does not import them all.
 """

@@ -60,13 +60,8 @@ Method = Callable[
 #: (bool), ``translation_gradient_norm`` (m), ``rotation_gradient_norm`` (rad), both of the
 #: last iteration, and ``trajectory`` (ndarray (K, 4, 4): the estimate at the start of each
 #: iteration, turned into error curves by the runner).
-INFO_KEYS = (
-    "iterations",
-    "converged",
-    "translation_gradient_norm",
-    "rotation_gradient_norm",
-    "trajectory",
-)
+INFO_KEYS = ("iterations", "converged", "translation_gradient_norm", "rotation_gradient_norm",
+             "trajectory")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +71,8 @@ class _Entry:
 
 
 _REGISTRY: dict[str, _Entry] = {}
+#: Known methods whose package is missing here: how to install it, by name.
+UNAVAILABLE: dict[str, str] = {}
 
 _reg = o3d.pipelines.registration
 
@@ -127,6 +124,8 @@ def _entry(name: str) -> _Entry:
     try:
         return _REGISTRY[name]
     except KeyError:
+        if name in UNAVAILABLE:
+            raise ValueError(f"method {name!r} needs {UNAVAILABLE[name]}") from None
         raise ValueError(
             f"method {name!r} is not registered; choose from {', '.join(method_names())}"
         ) from None
@@ -295,9 +294,8 @@ def _icp_from_identity(source, target, voxel_size: float, estimation) -> tuple[n
 @register_method("icp_point_to_point", settings={"estimation": "point_to_point", **_ICP_SETTINGS})
 def icp_point_to_point(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D point-to-point ICP from the identity on clouds down-sampled at the voxel size."""
-    return _icp_from_identity(
-        source, target, voxel_size, _reg.TransformationEstimationPointToPoint()
-    )
+    estimation = _reg.TransformationEstimationPointToPoint()
+    return _icp_from_identity(source, target, voxel_size, estimation)
 
 
 @register_method("icp_point_to_plane", settings={"estimation": "point_to_plane", **_ICP_SETTINGS})
@@ -308,46 +306,44 @@ def icp_point_to_plane(source, target, voxel_size: float, seed: int) -> tuple[np
     )
 
 
-def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float):
-    """The global-registration tutorial's features: down-sample at ``v``, normals with
-    radius ``2v``, FPFH with radius ``5v``."""
-    down = cloud.voxel_down_sample(voxel_size)
+def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float, features: dict = _FPFH):
+    """FPFH features (the global-registration tutorial's by default): down-sample at ``v``,
+    normals with radius ``normal_radius_voxels * v`` (``2v``), FPFH with radius
+    ``feature_radius_voxels * v`` (``5v``)."""
+    down = cloud.voxel_down_sample(features["down_sample_voxels"] * voxel_size)
     down.estimate_normals(
         o3d.geometry.KDTreeSearchParamHybrid(
-            radius=_FPFH["normal_radius_voxels"] * voxel_size, max_nn=_FPFH["normal_max_nn"]
+            radius=features["normal_radius_voxels"] * voxel_size, max_nn=features["normal_max_nn"]
         )
     )
     feature = _reg.compute_fpfh_feature(
         down,
         o3d.geometry.KDTreeSearchParamHybrid(
-            radius=_FPFH["feature_radius_voxels"] * voxel_size, max_nn=_FPFH["feature_max_nn"]
+            radius=features["feature_radius_voxels"] * voxel_size,
+            max_nn=features["feature_max_nn"],
         ),
     )
     return down, feature
 
 
-def _global_then_refine(source, target, voxel_size: float, seed: int, match) -> np.ndarray:
-    """FPFH features of both clouds, the global registration
-    ``match(source_down, target_down, source_fpfh, target_fpfh)`` (seeded), then
-    the tutorial's point-to-plane refinement on the full clouds
-    (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
+def global_then_refine(
+    source, target, voxel_size: float, seed: int, match, features: dict = _FPFH
+) -> np.ndarray:
+    """FPFH features of both clouds (``features``: sizes in voxels, the tutorial's by
+    default), the global registration ``match(source_down, target_down, source_fpfh,
+    target_fpfh)`` (seeded), then the tutorial's point-to-plane refinement on the full
+    clouds (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
     estimate."""
-    source_down, source_fpfh = _fpfh(source, voxel_size)
-    target_down, target_fpfh = _fpfh(target, voxel_size)
+    source_down, source_fpfh = _fpfh(source, voxel_size, features)
+    target_down, target_fpfh = _fpfh(target, voxel_size, features)
     o3d.utility.random.seed(seed)
     coarse = match(source_down, target_down, source_fpfh, target_fpfh)
     return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
 
 
-@register_method(
-    "fpfh_ransac", settings={"features": _FPFH, "ransac": _RANSAC, "refinement": _REFINEMENT}
-)
-def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-    """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
-
-    Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
-    3-point samples, at most 100000 iterations at confidence 0.999.
-    """
+def ransac_matcher(voxel_size: float):
+    """The tutorial's RANSAC on FPFH matches (:data:`_RANSAC`), as a ``match`` for
+    :func:`global_then_refine`."""
     distance = _RANSAC["max_correspondence_distance_voxels"] * voxel_size
     checkers = [
         _reg.CorrespondenceCheckerBasedOnEdgeLength(_RANSAC["edge_length_checker"]),
@@ -368,7 +364,19 @@ def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarra
             _reg.RANSACConvergenceCriteria(_RANSAC["max_iteration"], _RANSAC["confidence"]),
         )
 
-    return _global_then_refine(source, target, voxel_size, seed, ransac), {}
+    return ransac
+
+
+@register_method(
+    "fpfh_ransac", settings={"features": _FPFH, "ransac": _RANSAC, "refinement": _REFINEMENT}
+)
+def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
+
+    Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
+    3-point samples, at most 100000 iterations at confidence 0.999.
+    """
+    return global_then_refine(source, target, voxel_size, seed, ransac_matcher(voxel_size)), {}
 
 
 @register_method("fgr", settings={"features": _FPFH, "fgr": _FGR, "refinement": _REFINEMENT})
@@ -384,4 +392,8 @@ def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]
             source_down, target_down, source_fpfh, target_fpfh, option
         )
 
-    return _global_then_refine(source, target, voxel_size, seed, fast_global), {}
+    return global_then_refine(source, target, voxel_size, seed, fast_global), {}
+
+
+# Peers from other packages and the tuned FPFH-RANSAC, registered after Open3D's methods.
+from o3d_spectral.harness import peers  # noqa: E402, F401

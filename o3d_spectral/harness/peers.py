@@ -1,0 +1,153 @@
+"""Peers from other packages, and FPFH-RANSAC with features sized on a tuning split.
+
+* ``kiss_matcher``: KISS-Matcher (``pip install kiss-matcher``; Lim et al., ICRA 2025:
+  Faster-PFH features, graph-theoretic pruning, GNC solver), a global method, on both
+  clouds down-sampled at the voxel size ``v`` with its resolution set to ``v`` (its other
+  settings its defaults), then the same point-to-plane refinement as FPFH-RANSAC;
+* ``small_gicp``: small_gicp's GICP (``pip install small-gicp``) from the identity, a local
+  peer of Open3D's ICP: both clouds down-sampled at ``v``, covariances from 10 neighbours,
+  correspondences up to ``5v``, at most 100 iterations, one thread;
+* ``fpfh_ransac_tuned``: the tutorial's FPFH-RANSAC and refinement with the feature and
+  normal radii chosen by ``eval/tune_fpfh.py`` on the tuning split
+  (:data:`~o3d_spectral.harness.selection.TUNING_SPLIT`); it runs on the other instances
+  only (its settings carry ``tuning_split``, which the runner reads).
+
+The first two are registered only when their package imports (``pip install
+'o3d-spectral[peers]'``); otherwise asking for them says how to install it
+(:data:`~o3d_spectral.harness.methods.UNAVAILABLE`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+
+import numpy as np
+
+from o3d_spectral.harness import methods as _methods
+from o3d_spectral.harness.selection import TUNING_SPLIT
+from o3d_spectral.refinement import point_to_plane_refinement
+
+__all__ = ["FPFH_TUNING_GRID", "KISS_MATCHER", "SMALL_GICP", "TUNED_FPFH"]
+
+_HINT = "pip install 'o3d-spectral[peers]'"
+
+#: KISS-Matcher's settings (distances in voxels; the rest are its defaults).
+KISS_MATCHER = {
+    "down_sample_voxels": 1.0,
+    "resolution_voxels": 1.0,
+    "config": "KISSMatcherConfig defaults otherwise (normal_r_gain 3, fpfh_r_gain 5, ...)",
+    "refinement": _methods._REFINEMENT,
+}
+
+#: small_gicp's GICP (distances in voxels); the convergence tolerances are its defaults.
+SMALL_GICP = {
+    "init": "identity",
+    "registration_type": "GICP",
+    "down_sample_voxels": 1.0,
+    "num_neighbors": 10,
+    "max_correspondence_distance_voxels": _methods.ICP_DISTANCE_VOXELS,
+    "max_iterations": _methods.ICP_MAX_ITERATION,
+    "rotation_epsilon_rad": 0.1 * np.pi / 180.0,
+    "translation_epsilon_m": 1e-3,
+    "num_threads": 1,
+}
+
+#: The grid ``eval/tune_fpfh.py`` searches (radii in voxels).
+FPFH_TUNING_GRID = {"feature_radius_voxels": (2.5, 3.5, 5.0), "normal_radius_voxels": (1.5, 2.0)}
+
+#: The tuned features: the tutorial's with the radii ``eval/tune_fpfh.py`` chose.
+#: Provisional until the tuning split of the full suites is run (see docs/results.md).
+TUNED_FPFH = _methods._FPFH | {"feature_radius_voxels": 3.5, "normal_radius_voxels": 2.0}
+
+
+def _available(module: str) -> bool:
+    """Whether ``module`` imports (a broken install is as good as none)."""
+    if importlib.util.find_spec(module) is None:
+        return False
+    try:
+        importlib.import_module(module)
+    except Exception:  # noqa: BLE001 - any failure to import means "not available"
+        return False
+    return True
+
+
+def kiss_matcher(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """KISS-Matcher at resolution ``v`` on the clouds down-sampled at ``v``, then the
+    point-to-plane refinement on the full clouds."""
+    import kiss_matcher as km
+
+    points = [
+        np.asarray(cloud.voxel_down_sample(voxel_size).points, dtype=np.float32)
+        for cloud in (source, target)
+    ]
+    matcher = km.KISSMatcher(km.KISSMatcherConfig(voxel_size=voxel_size))
+    solution = matcher.estimate(points[0], points[1])
+    coarse = np.eye(4)
+    if solution.valid:
+        coarse[:3, :3] = np.asarray(solution.rotation, dtype=np.float64)
+        coarse[:3, 3] = np.asarray(solution.translation, dtype=np.float64).ravel()
+    return point_to_plane_refinement(source, target, voxel_size, coarse), {}
+
+
+def small_gicp(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+    """small_gicp's GICP from the identity (:data:`SMALL_GICP`)."""
+    import small_gicp as sg
+
+    prepared = [
+        sg.preprocess_points(
+            np.asarray(cloud.points, dtype=np.float64),
+            downsampling_resolution=voxel_size,
+            num_neighbors=SMALL_GICP["num_neighbors"],
+            num_threads=1,
+        )
+        for cloud in (target, source)
+    ]
+    (target_cloud, target_tree), (source_cloud, _) = prepared
+    result = sg.align(
+        target_cloud,
+        source_cloud,
+        target_tree,
+        np.eye(4),
+        registration_type="GICP",
+        max_correspondence_distance=SMALL_GICP["max_correspondence_distance_voxels"] * voxel_size,
+        num_threads=1,
+        max_iterations=SMALL_GICP["max_iterations"],
+        rotation_epsilon=SMALL_GICP["rotation_epsilon_rad"],
+        translation_epsilon=SMALL_GICP["translation_epsilon_m"],
+    )
+    info = {"iterations": int(result.iterations), "converged": bool(result.converged)}
+    return np.asarray(result.T_target_source, dtype=np.float64), info
+
+
+def fpfh_ransac_with(features: dict):
+    """FPFH-RANSAC and the refinement, as the tutorial's but with ``features``."""
+
+    def method(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
+        match = _methods.ransac_matcher(voxel_size)
+        return _methods.global_then_refine(source, target, voxel_size, seed, match, features), {}
+
+    return method
+
+
+def _register() -> None:
+    peers = [
+        ("kiss_matcher", "kiss_matcher", "kiss-matcher", kiss_matcher, KISS_MATCHER),
+        ("small_gicp", "small_gicp", "small-gicp", small_gicp, SMALL_GICP),
+    ]
+    for name, module, package, method, settings in peers:
+        if _available(module):
+            _methods.register_method(name, settings=settings)(method)
+        else:
+            _methods.UNAVAILABLE[name] = f"the {package} package: {_HINT}"
+    tuned = {
+        "features": TUNED_FPFH,
+        "tuning_split": TUNING_SPLIT,
+        "tuning_grid": FPFH_TUNING_GRID,
+        "ransac": _methods._RANSAC,
+        "refinement": _methods._REFINEMENT,
+    }
+    _methods.register_method("fpfh_ransac_tuned", settings=tuned)(fpfh_ransac_with(TUNED_FPFH))
+
+
+_register()
