@@ -229,8 +229,23 @@ def test_peers_run_on_a_tiny_instance(method, module, suite_dir, tmp_path):
     assert frame["transformation"].map(len).eq(4).all()
 
 
-def test_tuned_fpfh_skips_the_tuning_split(suite_dir, tmp_path):
-    run_eval([suite_dir], tmp_path, methods=["fpfh_ransac_tuned"], limit=2, progress=False)
+def test_tuned_fpfh_skips_the_tuning_split_and_is_reported_off_it(suite_dir, tmp_path):
+    from o3d_spectral.harness.report import make_report
+
+    methods = ["fpfh_ransac_tuned", "icp_point_to_plane"]
+    run_eval([suite_dir], tmp_path, methods=methods, limit=2, progress=False)
     frame = load_results(tmp_path)
-    assert list(frame["index"]) == [1]  # index 0 is in the tuning split
-    assert frame["success"].all()
+    tuned = frame[frame["method"] == "fpfh_ransac_tuned"]
+    assert list(tuned["index"]) == [1]  # index 0 is in the tuning split
+    assert tuned["success"].all()
+    written = make_report(tmp_path, tmp_path / "report")
+    held_out = (tmp_path / "report" / "summary_held_out.csv").read_text().splitlines()
+    assert "summary_held_out.md" in written and len(held_out) == 1 + len(methods)
+
+
+def test_a_missing_peer_says_how_to_install(monkeypatch):
+    from o3d_spectral.harness import get_method, methods
+
+    monkeypatch.setitem(methods.UNAVAILABLE, "not_here", "the not-here package: pip install x")
+    with pytest.raises(ValueError, match="not-here package"):
+        get_method("not_here")

@@ -18,6 +18,7 @@ from o3d_spectral.harness.figures import (
     plot_times,
 )
 from o3d_spectral.harness.records import load_results, read_config
+from o3d_spectral.harness.selection import TUNING_SPLIT, in_tuning_split
 from o3d_spectral.harness.tables import (
     Table,
     ambiguity_table,
@@ -80,6 +81,7 @@ def _markdown_report(
         "summary": "Success rate and time",
         "comparison": "Where spectral loses (automatic comparison)",
         "ambiguity": "What the views leave open",
+        "summary_held_out": "Success rate and time off the tuning split",
     }
     for table in tables:
         parts += [f"\n## {titles[table.name]}\n", f"{table.caption}\n", "\n" + to_markdown(table)]
@@ -115,6 +117,25 @@ def _figures(frame: pd.DataFrame, config: dict, spectral: list[str], out: Path) 
     return {title: plot(out / name) for title, plot, name in plots}
 
 
+def _held_out_summary(frame: pd.DataFrame, config: dict) -> Table | None:
+    """The summary on the instances off the tuning split only, when a method of the run was
+    tuned on it (its settings name a ``tuning_split``): every method on the same instances
+    as the tuned one. None otherwise."""
+    settings = {}
+    for session in config.get("sessions", []):
+        settings |= session.get("method_settings", {})
+    tuned = sorted(m for m, s in settings.items() if s and "tuning_split" in s)
+    if not tuned or not frame["method"].isin(tuned).any():
+        return None
+    held_out = frame[~frame["index"].map(in_tuning_split)]
+    table = summary_table(held_out)
+    caption = (
+        f"As the summary, on the instances off the tuning split ({TUNING_SPLIT} is the "
+        f"split) only, where {', '.join(tuned)} ran: every method on the same instances."
+    )
+    return Table("summary_held_out", caption, table.frame, table.formats)
+
+
 def make_report(
     results: str | Path, out_dir: str | Path, *, link_prefix: str = ""
 ) -> dict[str, Path]:
@@ -148,6 +169,9 @@ def make_report(
         tables.append(comparison_table(summary, spectral))
     if "indistinguishable" in frame:
         tables.append(ambiguity_table(frame))
+    held_out = _held_out_summary(frame, config)
+    if held_out is not None:
+        tables.append(held_out)
     written = [path for table in tables for path in write_table(table, out)]
     figures = _figures(frame, config, spectral, out)
     report = out / "report.md"
