@@ -98,6 +98,14 @@ def _client(distributed, address: str, workers: int):
     return distributed.Client(address), None
 
 
+def _worker_count(client) -> int:
+    try:  # newer versions list only a few workers unless asked for all
+        info = client.scheduler_info(n_workers=-1)
+    except TypeError:
+        info = client.scheduler_info()
+    return len(info["workers"])
+
+
 @contextlib.contextmanager
 def dask_cluster(
     address: str, workers: int, plugins: tuple[str, ...]
@@ -115,7 +123,7 @@ def dask_cluster(
             yield future.result()
 
     try:
-        yield submit, len(client.scheduler_info(n_workers=-1)["workers"])
+        yield submit, _worker_count(client)
     finally:
         with contextlib.suppress(Exception):
             client.cancel(futures)
