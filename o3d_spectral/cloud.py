@@ -6,11 +6,13 @@ caller's cloud is never modified) and :func:`prepare`.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 __all__ = [
     "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
@@ -19,6 +21,14 @@ __all__ = [
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
 MIN_POINTS = 10
+#: :func:`dense_bounds`: points beyond a gap of this many voxels along an axis, holding at
+#: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
+ISOLATED_GAP = 10.0
+ISOLATED_SHARE = 0.01
+#: Normals are oriented along the surface over at most this many points (:func:`_orient`).
+PROPAGATED_POINTS = 5000
+
+logger = logging.getLogger(__name__)
 
 CloudLike = "o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | numpy.ndarray"
 
@@ -140,6 +150,57 @@ def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> 
     return bool(shared.any() and np.mean(spread[shared] > 3.0 * voxel_size) < 0.1)
 
 
+def dense_bounds(
+    points: ArrayLike, voxel_size: float, *, gap: float = ISOLATED_GAP,
+    share: float = ISOLATED_SHARE,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bounds (metres, shape (3,) each) of a cloud without its isolated points.
+
+    Along each axis, the points beyond the outermost gap wider than ``gap`` voxels among
+    the ``share`` of points nearest either end are isolated: stray returns and flying
+    pixels far from the surfaces, which would otherwise size the voxel grids (20 points
+    2 m away from a 20 cm object make its grid a thousand times larger). Gaps inside the
+    cloud's bulk never cut it: at most ``share`` of the points go at each end.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Metres.
+    voxel_size : float
+        Metres.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    lower, upper = p.min(axis=0), p.max(axis=0)
+    k = int(share * len(p))
+    if k == 0:
+        return lower, upper
+    for axis in range(3):
+        ends = np.sort(np.partition(p[:, axis], (k, len(p) - k - 1))[: k + 1])
+        wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
+        if len(wide):
+            lower[axis] = ends[wide[-1] + 1]
+        ends = np.sort(np.partition(p[:, axis], len(p) - k - 1)[len(p) - k - 1 :])
+        wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
+        if len(wide):
+            upper[axis] = ends[wide[0]]
+    return lower, upper
+
+
+def _within(points: NDArray[np.float64], bounds: tuple[NDArray, NDArray]) -> NDArray[np.bool_]:
+    return np.all((points >= bounds[0]) & (points <= bounds[1]), axis=1)
+
+
+def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> CloudArrays:
+    """``arrays`` without the points outside :func:`dense_bounds` (logged)."""
+    keep = _within(arrays.points, dense_bounds(arrays.points, voxel_size))
+    if keep.all():
+        return arrays
+    logger.info("%s: %d isolated points (beyond a %g-voxel gap) left out", name,
+                int((~keep).sum()), ISOLATED_GAP)
+    normals = None if arrays.normals is None else arrays.normals[keep]
+    return CloudArrays(arrays.points[keep], normals)
+
+
 def _orient(
     cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float
 ) -> None:
@@ -152,10 +213,27 @@ def _orient(
         cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
         return
     # A model: propagate one orientation along the surface, then point it outward.
-    cloud.orient_normals_consistent_tangent_plane(10)
-    normals = np.asarray(cloud.normals)
+    normals = _propagated(cloud)
     if np.sum(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
-        cloud.normals = o3d.utility.Vector3dVector(-normals)
+        normals = -normals
+    cloud.normals = o3d.utility.Vector3dVector(normals)
+
+
+def _propagated(cloud: o3d.geometry.PointCloud) -> NDArray[np.float64]:
+    """The cloud's normals turned to one consistent orientation along the surface.
+
+    The orientation is propagated (Open3D's minimum spanning tree over tangent planes,
+    whose cost grows fast with the number of points) over every k-th point, at most
+    ``PROPAGATED_POINTS``, with their own normals; then each normal takes the sign of
+    the nearest propagated one.
+    """
+    step = int(np.ceil(len(cloud.points) / PROPAGATED_POINTS))
+    coarse = cloud.uniform_down_sample(step) if step > 1 else o3d.geometry.PointCloud(cloud)
+    coarse.orient_normals_consistent_tangent_plane(10)
+    _, nearest = cKDTree(np.asarray(coarse.points)).query(np.asarray(cloud.points))
+    normals = np.asarray(cloud.normals)
+    agree = np.einsum("ij,ij->i", normals, np.asarray(coarse.normals)[nearest]) >= 0.0
+    return np.where(agree[:, None], normals, -normals)
 
 
 @dataclass(frozen=True)
@@ -240,6 +318,7 @@ def prepare(
         When fewer than :data:`MIN_POINTS` voxels are occupied, or the points are
         (nearly) collinear.
     """
+    arrays = _without_isolated(arrays, voxel_size, name)
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
     _check_shape(np.asarray(fine.voxel_down_sample(voxel_size).points), voxel_size, name)
     if arrays.normals is None:

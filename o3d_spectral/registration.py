@@ -30,7 +30,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .refinement import refine
+from .refinement import near_pose, refine
 from .search import confidence, global_search
 from .stepper import MovingCloud, SpectralStepper
 
@@ -40,6 +40,9 @@ logger = logging.getLogger(__name__)
 
 #: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
 DEFAULT_REFINEMENT = RefinementOption()
+#: The refinement sees the target within the source's radius, or this many voxels if
+#: more, of the ball holding the posed source.
+REFINEMENT_MARGIN = 10.0
 
 
 class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
@@ -151,22 +154,40 @@ def _finish(
     source, target = to_legacy(run.source), to_legacy(run.target)  # once, for both
     voxel_size = run.stepper.voxel_size
     if refinement is not None:
-        transformation = refine(
-            source, _with_normals(target, run.stepper), voxel_size, transformation, refinement
-        )
+        transformation = _refined(run, source, target, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = max_correspondence_distance or voxel_size
-    evaluation = o3d.pipelines.registration.evaluate_registration(
-        source, target, distance, transformation
-    )
+    near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
-    result.fitness = evaluation.fitness
-    result.inlier_rmse = evaluation.inlier_rmse
-    result.correspondence_set = evaluation.correspondence_set
+    if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
+        evaluation = o3d.pipelines.registration.evaluate_registration(
+            source, near, distance, transformation
+        )
+        pairs = np.asarray(evaluation.correspondence_set)
+        pairs[:, 1] = indices[pairs[:, 1]]  # back to the whole target's indices
+        result.fitness = evaluation.fitness
+        result.inlier_rmse = evaluation.inlier_rmse
+        result.correspondence_set = o3d.utility.Vector2iVector(pairs)
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
+
+
+def _refined(
+    run: _Run, source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud,
+    transformation: NDArray[np.float64], refinement: RefinementOption,
+) -> NDArray[np.float64]:
+    """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
+    of a scene within the source's size of it (the polish moves the source far less)."""
+    fixed = _with_normals(target, run.stepper)
+    points = run.source.points
+    reach = float(np.max(np.linalg.norm(points - points.mean(axis=0), axis=1)))
+    margin = max(reach, REFINEMENT_MARGIN * run.stepper.voxel_size)
+    near, kept = near_pose(fixed, points, transformation, margin)
+    if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
+        return transformation
+    return refine(source, near, run.stepper.voxel_size, transformation, refinement)
 
 
 def _with_normals(

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,7 +30,7 @@ from scipy.spatial import cKDTree
 from . import so3
 from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
 from .egi import coefficients as egi_coefficients
-from .egi import facing, normalise, smooth
+from .egi import facing, harmonics_table, normalise, smooth
 from .options import CloudOption, SpectralRegistrationOption
 from .rotation import RotationGradient, curvature_scale, gradient, rotation_step
 from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
@@ -40,6 +41,9 @@ __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
 FOCUS_SHARE = 0.9
+#: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
+#: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
+MAX_HARMONICS_TABLE = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -58,6 +62,10 @@ class MovingCloud:
         Largest distance of a point from the centroid, metres.
     coefficients : ndarray, shape (B, 2B - 1)
         EGI coefficients ``F^l`` before smoothing and normalisation.
+    harmonics : ndarray, shape (M, B (2B - 1)), or None
+        Real spherical harmonics at each of ``point_normals``
+        (:func:`o3d_spectral.egi.harmonics_table`), kept when the fixed cloud is a
+        single view: the visible part's EGI is then one product per pose.
     """
 
     points: NDArray[np.float64]
@@ -65,6 +73,7 @@ class MovingCloud:
     centroid: NDArray[np.float64]
     radius: float
     coefficients: NDArray[np.float64]
+    harmonics: NDArray[np.float64] | None = None
 
     def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
         """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
@@ -180,6 +189,11 @@ class SpectralStepper:
             name=name,
         )
 
+    @cached_property
+    def _normals_tree(self) -> cKDTree:
+        """KD-tree of the fixed cloud's normal points (:meth:`focused`), built once."""
+        return cKDTree(self.target_normal_points)
+
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
         """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
         choice = self.cloud.target_viewpoint
@@ -229,7 +243,12 @@ class SpectralStepper:
             point_normals, normals = point_normals @ M[:3, :3].T, normals @ M[:3, :3].T
         centroid = points.mean(axis=0)
         radius = float(np.max(np.linalg.norm(points - centroid, axis=1)))
-        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals))
+        B = self.option.bandwidth
+        table = None
+        fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
+        if self.viewpoint is not None and not self.option.egi_binned and fits:
+            table = harmonics_table(point_normals, B)
+        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table)
 
     def focused(self, near: ArrayLike, radius: float) -> SpectralStepper:
         """This stepper with the fixed EGI made only of the fixed cloud's normals within
@@ -242,9 +261,10 @@ class SpectralStepper:
         Returns ``self`` when over ``FOCUS_SHARE`` of the normals are kept (nothing to
         gain) or fewer than ``MIN_POINTS``.
         """
-        tree = cKDTree(np.asarray(near, dtype=np.float64).reshape(-1, 3))
-        distances, _ = tree.query(self.target_normal_points, distance_upper_bound=radius)
-        kept = np.isfinite(distances)
+        near = np.asarray(near, dtype=np.float64).reshape(-1, 3)
+        hits = self._normals_tree.query_ball_point(near, r=radius, return_sorted=False)
+        kept = np.zeros(len(self.target_normal_points), dtype=bool)
+        kept[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])] = True
         if kept.sum() < MIN_POINTS or kept.mean() > FOCUS_SHARE:
             return self
         out = copy.copy(self)
@@ -330,7 +350,7 @@ class SpectralStepper:
         raw_egi = moving.coefficients
         if toward is not None:
             # A sensor samples a surface in proportion to its projected area: cos(incidence).
-            raw_egi = self._egi(moving.point_normals[toward], cosine[toward])
+            raw_egi = self._visible_egi(moving, toward, cosine[toward])
         placed = self.grid.correlate(moved, moving.radius, moving.centroid + T, around)
         # Rotation: gradient of the EGI correlation, scaled to an angle.
         F, G = self._smooth(raw_egi, level), self.target_coefficients[level]
@@ -338,6 +358,16 @@ class SpectralStepper:
         scale = curvature_scale(F, G)
         step = rotation_step(local, scale, preconditioned=self.option.preconditioned)
         return Evaluation.of(placed.shift, step, local, placed.peak, placed.cost)
+
+    def _visible_egi(
+        self, moving: MovingCloud, toward: NDArray[np.bool_], weights: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """EGI coefficients of the moving cloud's point normals selected by ``toward``,
+        weighted by ``weights`` (in the cloud's own frame: the pose turns them later)."""
+        if moving.harmonics is None:
+            return self._egi(moving.point_normals[toward], weights)
+        B = self.option.bandwidth
+        return (weights @ moving.harmonics[toward]).reshape(B, 2 * B - 1)
 
     def increments(
         self, evaluation: Evaluation

@@ -11,6 +11,7 @@ between the two unambiguous whatever the distance between the clouds.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,7 @@ class TargetGrid:
         grid = splat(points, self.box, mode=weighting)
         self._grid = grid / np.linalg.norm(grid)
         self._spectra: dict[tuple, NDArray[np.complexfloating]] = {}
+        self._lock = threading.Lock()  # the cache is shared by the threads using this grid
 
     def moving_box(self, radius: float, centre: NDArray[np.float64]) -> Box:
         """The cube holding a moving cloud of ``radius`` (metres) centred at ``centre``
@@ -169,13 +171,17 @@ class TargetGrid:
         spectrum (cached: a few blocks and shapes recur over a registration)."""
         shape = self.fft_shape(fixed, moving)
         key = (tuple(fixed.offset), fixed.shape, shape)
-        if key not in self._spectra:
-            if len(self._spectra) >= CACHED_SPECTRA:
-                del self._spectra[next(iter(self._spectra))]
+        fft = fft_plan(shape, precision=PRECISION)  # this thread's plan
+        with self._lock:
+            spectrum = self._spectra.get(key)
+        if spectrum is None:
             check_memory(shape, self.max_memory, "voxel grids")
-            fft = fft_plan(shape, precision=PRECISION)
             padded = np.zeros(shape, dtype=fft.dtype)
             f = fixed.shape
             padded[: f[0], : f[1], : f[2]] = self._block(fixed)
-            self._spectra[key] = np.array(fft.forward(padded))
-        return fft_plan(shape, precision=PRECISION), self._spectra[key]
+            spectrum = np.array(fft.forward(padded))
+            with self._lock:
+                if len(self._spectra) >= CACHED_SPECTRA:
+                    del self._spectra[next(iter(self._spectra))]
+                self._spectra[key] = spectrum
+        return fft, spectrum
