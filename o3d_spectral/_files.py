@@ -147,7 +147,8 @@ def check_cloud_file(path: str | Path) -> Path:
 
 
 def check_finite(
-    points: np.ndarray, path: str | Path, *, drop: bool = False, what: str = "points"
+    points: np.ndarray, path: str | Path, *, drop: bool = False, what: str = "points",
+    hint: str = "the file may be corrupt",
 ) -> np.ndarray | None:
     """Refuse non-finite rows of ``points`` read from ``path`` (``ValueError`` naming the
     file), or with ``drop`` return the mask of the finite rows after a warning through the
@@ -159,7 +160,7 @@ def check_finite(
     if not drop:
         raise ValueError(
             f"{path}: {bad} of {len(finite)} {what} have NaN or infinite coordinates; "
-            "the file may be corrupt (--drop-nan drops them)"
+            f"{hint}"
         )
     log.warning("%s: dropped %d of %d %s with NaN or infinite coordinates",
                 path, bad, len(finite), what)

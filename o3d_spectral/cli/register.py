@@ -62,7 +62,8 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
     if cloud.has_normals():
         arrays.append(np.asarray(cloud.normals))
     what = "points (with their normals)" if len(arrays) == 2 else "points"
-    keep = check_finite(np.hstack(arrays), path, drop=drop_nan, what=what)
+    keep = check_finite(np.hstack(arrays), path, drop=drop_nan, what=what,
+                        hint="the file may be corrupt; --drop-nan drops them")
     if keep is not None:
         cloud = cloud.select_by_index(np.flatnonzero(keep).tolist())
         if len(cloud.points) == 0:
