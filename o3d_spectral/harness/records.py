@@ -5,9 +5,14 @@
   (``git rev-parse HEAD``, or null outside a checkout), the versions of o3d-spectral,
   Open3D, NumPy, SciPy, pyFFTW and Python, and the settings of every method run;
 * ``results.jsonl``: one JSON object per (instance, method), appended as soon as it is
-  done, so an interrupted run resumes where it stopped;
+  done, so an interrupted run resumes where it stopped; a row that failed for a reason in
+  the input (an empty or corrupt instance file, recorded by versions that did not stop on
+  it, :func:`input_failure`) is run again on resume, and the later row wins;
 * ``results.csv``: the same rows as a table (without the convergence curves), sorted by
   suite, instance and method.
+
+``config.json`` and ``results.csv`` are replaced atomically (a temporary file renamed over
+them), so a kill never leaves half a file.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from pathlib import Path
 
 from o3d_spectral.harness._optional import require
 from o3d_spectral.harness.methods import method_settings
+from o3d_spectral.synthetic.manifest import atomic_write_text
 from o3d_spectral.synthetic.suite import Suite
 
 __all__ = [
@@ -32,6 +38,7 @@ __all__ = [
     "TABLE_FILE",
     "commit",
     "done_keys",
+    "input_failure",
     "load_results",
     "machine",
     "prepare_config",
@@ -49,6 +56,13 @@ TABLE_FILE = "results.csv"
 CURVE_COLUMNS = ("curve_rotation_deg", "curve_translation_m")
 #: What identifies a results row.
 KEY = ("suite", "index", "method")
+#: Parts of the error of a row that failed because of its input, not of its method: an
+#: instance file that was missing or corrupt (read as an empty or garbage cloud).
+INPUT_ERRORS = (
+    "source is empty", "target is empty", "NaN or infinite", "no such file",
+    "missing instance file", "truncated or corrupt", "Open3D read no points",
+    "has no 'positions'",
+)
 #: Version of each package, by the key it has in a session's ``versions``.
 _PACKAGES = {
     "o3d_spectral": "o3d_spectral",
@@ -68,7 +82,11 @@ def prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list
     """Read the run's config (checking that its settings match) or start a new one."""
     path = out / CONFIG_FILE
     if path.is_file():
-        config = json.loads(path.read_text())
+        config = _read_json(path)
+        if not isinstance(config, dict) or not all(
+            isinstance(config.get(k), list) for k in ("suites", "methods", "sessions")
+        ):
+            raise ValueError(f"{path} is not a run's config (no suites, methods, sessions)")
         for key, value in settings.items():
             if config.get(key) != value:
                 raise ValueError(
@@ -105,19 +123,51 @@ def prepare_config(out: Path, suites: list[Suite], settings: dict, methods: list
 
 
 def write_config(out: Path, config: dict) -> None:
-    (out / CONFIG_FILE).write_text(json.dumps(config, indent=1) + "\n")
+    atomic_write_text(out / CONFIG_FILE, json.dumps(config, indent=1) + "\n")
+
+
+def _read_json(path: Path) -> object:
+    try:
+        return json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is not valid JSON ({error}); move it away") from None
+
+
+def _rows(file: Path, text: str) -> list[dict]:
+    """The rows of ``results.jsonl`` (its ``text``); ``ValueError`` naming the file and the
+    line of one that is not a row."""
+    rows = []
+    for number, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            row = None
+        if not isinstance(row, dict) or any(key not in row for key in KEY):
+            raise ValueError(f"{file}, line {number}: not a results row; remove that line")
+        rows.append(row)
+    return rows
+
+
+def input_failure(row: dict) -> bool:
+    """Whether ``row`` failed because of its input (:data:`INPUT_ERRORS`)."""
+    error = row.get("error")
+    return isinstance(error, str) and any(part in error for part in INPUT_ERRORS)
 
 
 def done_keys(results: Path) -> set[tuple]:
-    """Keys of the rows already in ``results``; a last row cut off by a kill is removed
-    (it will be run again)."""
+    """Keys of the rows already in ``results``, but for rows that failed because of their
+    input (:func:`input_failure`; they will be run again, unless a later row of the same
+    key succeeded); a last row cut off by a kill is removed (it will be run again)."""
     if not results.is_file():
         return set()
     text = results.read_text()
     complete = text[: text.rfind("\n") + 1]
     if complete != text:
-        results.write_text(complete)
-    return {tuple(json.loads(line)[k] for k in KEY) for line in complete.splitlines() if line}
+        atomic_write_text(results, complete)
+    latest = {tuple(row[k] for k in KEY): row for row in _rows(results, complete)}
+    return {key for key, row in latest.items() if not input_failure(row)}
 
 
 def machine() -> dict:
@@ -191,9 +241,8 @@ def session_record(methods: list[str], **counts) -> dict:
 def write_results_table(out: Path) -> Path:
     """Write ``results.csv`` (the rows without curves and transformations) and return it."""
     table = out / TABLE_FILE
-    load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore").to_csv(
-        table, index=False
-    )
+    frame = load_results(out).drop(columns=[*CURVE_COLUMNS, "transformation"], errors="ignore")
+    atomic_write_text(table, frame.to_csv(index=False))
     return table
 
 
@@ -209,8 +258,7 @@ def load_results(path: str | Path):
     file = path / RESULTS_FILE if path.is_dir() else path
     if not file.is_file():
         raise FileNotFoundError(f"no {RESULTS_FILE} at {path}; run o3d-spectral eval first")
-    with file.open() as lines:  # json, not pandas' parser: floats stay exact
-        rows = [json.loads(line) for line in lines if line.strip()]
+    rows = _rows(file, file.read_text())  # json, not pandas' parser: floats stay exact
     if not rows:
         raise ValueError(f"{file} holds no results yet")
     frame = require("pandas").DataFrame(rows)
