@@ -65,6 +65,18 @@ def check_number(
     _bounds(name, float(value), low, high, low_open)
 
 
+def check_instance(name: str, value: object, cls: type, *, optional: bool = True) -> None:
+    """``value`` must be a ``cls`` (or None when ``optional``): another library's settings
+    object of a similar name (Open3D's ``ICPConvergenceCriteria``) is refused here."""
+    if (value is None and optional) or isinstance(value, cls):
+        return
+    raise TypeError(
+        f"{name} must be an o3d_spectral.{cls.__name__}"
+        f"{' or None' if optional else ''}, got {type(value).__module__}."
+        f"{type(value).__qualname__}"
+    )
+
+
 def check_point(name: str, value: object) -> tuple[float, float, float] | None:
     """``value`` must be None or three finite coordinates (metres); returns a tuple."""
     if value is None:

@@ -224,15 +224,24 @@ def _propagated(cloud: o3d.geometry.PointCloud) -> NDArray[np.float64]:
 
     The orientation is propagated (Open3D's minimum spanning tree over tangent planes,
     whose cost grows fast with the number of points) over every k-th point, at most
-    ``PROPAGATED_POINTS``, with their own normals; then each normal takes the sign of
-    the nearest propagated one.
+    ``PROPAGATED_POINTS``, with their own normals, centred at the origin; then each
+    normal takes the sign of the nearest propagated one. A plane (no spread across it)
+    takes one side of it.
     """
-    step = int(np.ceil(len(cloud.points) / PROPAGATED_POINTS))
-    coarse = cloud.uniform_down_sample(step) if step > 1 else o3d.geometry.PointCloud(cloud)
-    coarse.orient_normals_consistent_tangent_plane(10)
-    _, nearest = cKDTree(np.asarray(coarse.points)).query(np.asarray(cloud.points))
-    normals = np.asarray(cloud.normals)
-    agree = np.einsum("ij,ij->i", normals, np.asarray(coarse.normals)[nearest]) >= 0.0
+    points, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
+    centred = points - points.mean(axis=0)  # Qhull loses precision far from the origin
+    spread = np.linalg.svd(centred[:: max(len(points) // 2000, 1)], compute_uv=False)
+    if spread[2] < 1e-6 * spread[0]:  # a plane: one normal, and nothing for Qhull to do
+        _, _, axes = np.linalg.svd(centred[:: max(len(points) // 2000, 1)])
+        reference = np.broadcast_to(axes[2], normals.shape)
+    else:
+        step = int(np.ceil(len(points) / PROPAGATED_POINTS))
+        coarse = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centred[::step]))
+        coarse.normals = o3d.utility.Vector3dVector(normals[::step])
+        coarse.orient_normals_consistent_tangent_plane(10)
+        _, nearest = cKDTree(np.asarray(coarse.points)).query(centred)
+        reference = np.asarray(coarse.normals)[nearest]
+    agree = np.einsum("ij,ij->i", normals, reference) >= 0.0
     return np.where(agree[:, None], normals, -normals)
 
 

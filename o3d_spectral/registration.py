@@ -21,6 +21,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
+from ._checks import check_instance, check_number
 from .cloud import CloudArrays, as_arrays, to_legacy
 from .law import Climb, IterationRecord, climb
 from .options import (
@@ -125,6 +126,19 @@ def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
     return M
 
 
+def _check_settings(**settings: object) -> None:
+    """Each setting is None or an instance of its o3d_spectral class; the distance a
+    positive number of metres or None."""
+    classes = {"option": SpectralRegistrationOption, "criteria": SpectralConvergenceCriteria,
+               "cloud": CloudOption, "search": GlobalSearchOption,
+               "refinement": RefinementOption}
+    for name, value in settings.items():
+        if name == "max_correspondence_distance":
+            check_number(name, value, low=0.0, low_open=True, optional=True)
+        else:
+            check_instance(name, value, classes[name])
+
+
 def _start(
     source: object, target: object, voxel_size: float, init: ArrayLike,
     option: SpectralRegistrationOption | None, criteria: SpectralConvergenceCriteria | None,
@@ -138,6 +152,20 @@ def _start(
     moving = stepper.moving(source, "source", transformation=init)
     criteria = criteria or SpectralConvergenceCriteria()
     return _Run(source, target, stepper, moving, init, criteria, start)
+
+
+def _check_search_memory(search: GlobalSearchOption, option: SpectralRegistrationOption) -> None:
+    """The SO(3) correlation grid (complex, ``samples^3``, three transforms against a
+    single view) must fit in ``option.max_grid_memory``."""
+    samples = search.samples(option.bandwidth)
+    need = 3.0 * 16.0 * float(samples) ** 3
+    if need > option.max_grid_memory:
+        raise ValueError(
+            f"the global search's SO(3) grid of {samples}^3 rotations needs about "
+            f"{need / 2**20:.0f} MiB, over max_grid_memory={option.max_grid_memory:.3g} bytes: "
+            f"lower GlobalSearchOption.search_samples or the bandwidth "
+            f"({option.bandwidth}), or raise max_grid_memory"
+        )
 
 
 def _finish(
@@ -157,7 +185,7 @@ def _finish(
         transformation = _refined(run, source, target, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
-    distance = max_correspondence_distance or voxel_size
+    distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
     near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
     if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
@@ -275,6 +303,8 @@ def registration_spectral(
     >>> result = o3d_spectral.registration_spectral(source, target, 0.008)  # doctest: +SKIP
     >>> source.transform(result.transformation)  # doctest: +SKIP
     """
+    _check_settings(option=option, criteria=criteria, cloud=cloud, refinement=refinement,
+                    max_correspondence_distance=max_correspondence_distance)
     run = _start(source, target, voxel_size, init, option, criteria, cloud)
     best = Climb(run.moving.centroid)
     run.climb(best, run.criteria.max_iteration)
@@ -341,8 +371,10 @@ def registration_spectral_global(
     --------
     >>> result = o3d_spectral.registration_spectral_global(model, scan, 0.008)  # doctest: +SKIP
     """
+    _check_settings(option=option, criteria=criteria, search=search, cloud=cloud,
+                    refinement=refinement, max_correspondence_distance=max_correspondence_distance)
     search = search or GlobalSearchOption()
-    search.samples((option or SpectralRegistrationOption()).bandwidth)  # check it early
+    _check_search_memory(search, option or SpectralRegistrationOption())  # before any work
     run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
     iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
     tolerance = run.criteria.tolerances(voxel_size)

@@ -1,6 +1,6 @@
 """Issue 19, the library's calls under hostile input: property-based tests over clouds and
-options, and the defects whose fix belongs in the core numerical modules (marked
-``xfail(strict=True)`` until those fixes land; each reason says where the fix goes).
+options, and the defects whose fix belongs in the core numerical modules (the two still
+open are marked ``xfail(strict=True)``; each reason says where the fix goes).
 
 The contract: a call either raises ``ValueError``/``TypeError`` whose message names the
 argument, or returns a finite rigid transformation; it never modifies its inputs, and the
@@ -171,8 +171,6 @@ def test_any_cloud_with_normals_registers_or_is_refused_by_name(source, shift, c
     _check_contract(source, target, call)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: Qhull 'cocircular' RuntimeError for planar "
-                   "or far-off clouds without normals; fix in cloud._orient")
 @settings(max_examples=25, deadline=None)
 @example(source=np.c_[np.random.default_rng(0).uniform(-0.1, 0.1, (60, 2)), np.zeros(60)],
          call="local")
@@ -200,8 +198,6 @@ def _model(n=3000, normals=True):
             else np.asarray(cloud.points).copy())
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: fft.fft_plan shares pyfftw plans and their "
-                   "buffers between threads; make the plan cache per thread")
 def test_threads_give_bit_identical_results_to_serial_calls():
     source = _model(2000, normals=False)
     rng = np.random.default_rng(3)
@@ -223,8 +219,6 @@ def test_threads_give_bit_identical_results_to_serial_calls():
             np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: Qhull 'cocircular' error for a plane "
-                   "through the origin without normals; fix in cloud._orient")
 def test_plane_through_the_origin_without_normals():
     g = np.linspace(-0.1, 0.1, 30)
     plane = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
@@ -232,8 +226,8 @@ def test_plane_through_the_origin_without_normals():
     assert_rigid(result.transformation)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: Qhull 'cocircular' error for UTM-sized "
-                   "coordinates; centre the points in cloud._orient")
+@pytest.mark.xfail(strict=True, reason="issue 19: far from the origin (UTM) the ICP polish "
+                   "is ill-conditioned; centre the clouds in registration._start")
 def test_georeferenced_cloud_without_normals():
     points = _model(normals=False) + [500_000.0, 4_000_000.0, 100.0]
     result = o3d_spectral.registration_spectral(points, points + [0.01, 0, 0], VOXEL)
@@ -242,7 +236,7 @@ def test_georeferenced_cloud_without_normals():
 
 
 @pytest.mark.xfail(strict=True, reason="issue 19: clouds are not centred internally; centre "
-                   "them in registration._start")
+                   "them in registration._start (and the 'auto' viewpoint's origin with them)")
 def test_large_absolute_coordinates_give_the_same_pose_as_near_the_origin():
     points = _model(normals=False)
     shift = np.array([0.01, -0.005, 0.0])
@@ -256,8 +250,6 @@ def test_large_absolute_coordinates_give_the_same_pose_as_near_the_origin():
                                atol=1e-5)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: registration._start does not check the "
-                   "type of criteria (Open3D's ICPConvergenceCriteria: AttributeError)")
 def test_open3d_criteria_are_refused_by_name():
     points = _model()
     with pytest.raises(TypeError, match="criteria"):
@@ -266,8 +258,6 @@ def test_open3d_criteria_are_refused_by_name():
             criteria=o3d.pipelines.registration.ICPConvergenceCriteria())
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: registration._finish accepts a negative or "
-                   "NaN max_correspondence_distance (fitness 0 for a perfect pose)")
 @pytest.mark.parametrize("distance", [-1.0, 0.0, float("nan"), float("inf")])
 def test_bad_max_correspondence_distance_is_refused_by_name(distance):
     points = _model()
@@ -276,8 +266,6 @@ def test_bad_max_correspondence_distance_is_refused_by_name(distance):
                                            max_correspondence_distance=distance)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19: the global search's SO(3) grid is not "
-                   "checked against max_grid_memory (registration_spectral_global)")
 def test_global_search_grid_stays_within_max_grid_memory():
     points = _model()
     option = SpectralRegistrationOption(max_grid_memory=2**20)  # voxel grids fit in 1 MiB
