@@ -202,13 +202,15 @@ def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> Clou
 
 
 def _orient(
-    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float
+    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float,
+    origin: NDArray[np.float64],
 ) -> None:
-    """Orient estimated normals in place (on our own copy)."""
+    """Orient estimated normals in place (on our own copy); ``origin``: where the
+    caller's frame has its origin (metres)."""
     points = np.asarray(cloud.points)
-    origin_outside = np.any(points.min(axis=0) > 0.0) or np.any(points.max(axis=0) < 0.0)
-    if camera_location is None and origin_outside and is_depth_map(points, [0, 0, 0], voxel_size):
-        camera_location = np.zeros(3)  # a scan in its sensor's frame
+    outside = np.any(points.min(axis=0) > origin) or np.any(points.max(axis=0) < origin)
+    if camera_location is None and outside and is_depth_map(points, origin, voxel_size):
+        camera_location = origin  # a scan in its sensor's frame
     if camera_location is not None:
         cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
         return
@@ -287,6 +289,7 @@ def prepare(
     max_egi_points: int = 50_000,
     normal_radius: float | None = None,
     camera_location: ArrayLike | None = None,
+    origin: ArrayLike | None = None,
     name: str = "cloud",
 ) -> PreparedCloud:
     """Down-sample a cloud and provide unit normals.
@@ -314,6 +317,9 @@ def prepare(
         Metres; ``2.5 * voxel_size`` when omitted.
     camera_location : array_like, shape (3,), optional
         Sensor position in the cloud's frame, metres.
+    origin : array_like, shape (3,), optional
+        Where the origin of the frame the caller gave the cloud in lies, metres (a
+        scan's sensor when it is in its sensor's frame); the origin when omitted.
     name : str
         Argument name used in error messages.
 
@@ -333,7 +339,8 @@ def prepare(
     if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
-        _orient(fine, camera_location, voxel_size)
+        where = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
+        _orient(fine, camera_location, voxel_size, where)
     coarse = fine.voxel_down_sample(voxel_size)
     points = np.asarray(coarse.points).copy()
     point_normals = np.asarray(coarse.normals)

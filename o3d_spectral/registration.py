@@ -20,8 +20,8 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from . import so3
-from ._checks import check_instance, check_number
+from . import centring
+from ._checks import check_instance, check_number, check_transformation
 from .cloud import CloudArrays, as_arrays, to_legacy
 from .law import Climb, IterationRecord, climb
 from .options import (
@@ -109,21 +109,12 @@ class _Run:
     init: NDArray[np.float64]
     criteria: SpectralConvergenceCriteria
     start: float
+    offset: NDArray[np.float64] | None  # where the clouds were centred (centring module)
 
     def climb(self, state: Climb, iterations: int) -> None:
         """The law on ``state`` for at most ``iterations``."""
         tolerance = self.criteria.tolerances(self.stepper.voxel_size)
         climb(self.stepper, self.moving, state, iterations, tolerance, self.init, self.start)
-
-
-def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
-    M = np.asarray(init, dtype=np.float64)
-    if M.shape != (4, 4):
-        raise ValueError(f"init must be a 4x4 matrix, got shape {M.shape}")
-    rigid = so3.is_rotation(M[:3, :3]) and np.allclose(M[3], [0.0, 0.0, 0.0, 1.0])
-    if not (rigid and np.all(np.isfinite(M))):
-        raise ValueError("init must be a finite rigid transformation (rotation + translation)")
-    return M
 
 
 def _check_settings(**settings: object) -> None:
@@ -146,26 +137,17 @@ def _start(
 ) -> _Run:
     """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
     start = time.perf_counter()
-    init = _check_transformation(init)
+    init = check_transformation(init)
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
-    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud)
+    c, origin = centring.offset(target), None
+    if c is not None:  # far from the origin: register in a frame centred on the target
+        source, target = centring.centred_arrays(source, c), centring.centred_arrays(target, c)
+        cloud = centring.centred_option(cloud or CloudOption(), c)
+        init, origin = centring.shifted(init, c), -c
+    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
     moving = stepper.moving(source, "source", transformation=init)
     criteria = criteria or SpectralConvergenceCriteria()
-    return _Run(source, target, stepper, moving, init, criteria, start)
-
-
-def _check_search_memory(search: GlobalSearchOption, option: SpectralRegistrationOption) -> None:
-    """The SO(3) correlation grid (complex, ``samples^3``, three transforms against a
-    single view) must fit in ``option.max_grid_memory``."""
-    samples = search.samples(option.bandwidth)
-    need = 3.0 * 16.0 * float(samples) ** 3
-    if need > option.max_grid_memory:
-        raise ValueError(
-            f"the global search's SO(3) grid of {samples}^3 rotations needs about "
-            f"{need / 2**20:.0f} MiB, over max_grid_memory={option.max_grid_memory:.3g} bytes: "
-            f"lower GlobalSearchOption.search_samples or the bandwidth "
-            f"({option.bandwidth}), or raise max_grid_memory"
-        )
+    return _Run(source, target, stepper, moving, init, criteria, start, c)
 
 
 def _finish(
@@ -197,6 +179,10 @@ def _finish(
         result.fitness = evaluation.fitness
         result.inlier_rmse = evaluation.inlier_rmse
         result.correspondence_set = o3d.utility.Vector2iVector(pairs)
+    if run.offset is not None:  # back to the caller's frame
+        result.transformation = centring.shifted(transformation, -run.offset)
+        result.history = centring.uncentred_history(result.history, run.offset)
+        result.hypotheses = [(centring.shifted(M, -run.offset), s) for M, s in result.hypotheses]
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
@@ -374,7 +360,7 @@ def registration_spectral_global(
     _check_settings(option=option, criteria=criteria, search=search, cloud=cloud,
                     refinement=refinement, max_correspondence_distance=max_correspondence_distance)
     search = search or GlobalSearchOption()
-    _check_search_memory(search, option or SpectralRegistrationOption())  # before any work
+    search.check_memory(option or SpectralRegistrationOption())  # before any work
     run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
     iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
     tolerance = run.criteria.tolerances(voxel_size)

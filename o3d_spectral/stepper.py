@@ -11,10 +11,8 @@ the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full correct
 - rotation (radians): ``grad C_r`` (eq. cr_derivative) divided by the correlation's
   curvature (:func:`o3d_spectral.rotation.rotation_step`),
 
-and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The law's loop
-is :mod:`o3d_spectral.law`; the search over all of SO(3) is :mod:`o3d_spectral.search`;
-visual servoing's cycle is :class:`o3d_spectral.servo.ServoLaw`. A stepper holds no state
-of a run: one stepper serves many moving clouds.
+and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The loop is
+:mod:`o3d_spectral.law`; a stepper holds no state of a run: it serves many moving clouds.
 """
 
 from __future__ import annotations
@@ -147,17 +145,25 @@ class SpectralStepper:
     option : SpectralRegistrationOption, optional
     cloud : CloudOption, optional
         Normal estimation and the target's sensor position.
+    frame_origin : array_like, shape (3,), optional
+        Where the origin of the caller's frame lies in the clouds' frame (metres): the
+        sensor of a scan given in its sensor's frame (``target_viewpoint="auto"``, depth
+        maps). The origin when omitted; the registration calls pass it when they centre
+        clouds given far from the origin.
     """
 
     def __init__(
         self, target: object, voxel_size: float, *,
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
+        frame_origin: ArrayLike | None = None,
     ) -> None:
         if not (np.isfinite(voxel_size) and voxel_size > 0):
             raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
         self.option = option or SpectralRegistrationOption()
         self.cloud = cloud or CloudOption()
         self.voxel_size = float(voxel_size)
+        self.frame_origin = np.zeros(3) if frame_origin is None else np.asarray(
+            frame_origin, dtype=np.float64)
         prepared = self._prepare(target, "target")
         self.grid = TargetGrid(
             prepared.points, self.voxel_size, weighting=self.option.voxel_weighting,
@@ -186,7 +192,7 @@ class SpectralStepper:
         return prepare(
             arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
             normal_radius=self.cloud.normal_radius, camera_location=self.cloud.camera_location,
-            name=name,
+            origin=self.frame_origin, name=name,
         )
 
     @cached_property
@@ -201,7 +207,7 @@ class SpectralStepper:
             return None
         if not isinstance(choice, str):
             return np.asarray(choice, dtype=np.float64)
-        sensor = np.zeros(3)
+        sensor = self.frame_origin
         has_normal = np.any(target.point_normals != 0.0, axis=1)
         toward = np.einsum("ij,ij->i", target.point_normals, sensor - target.points) > 0.0
         return sensor if toward[has_normal].mean() >= 0.9 else None
