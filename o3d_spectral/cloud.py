@@ -335,13 +335,14 @@ def prepare(
     """
     arrays = _without_isolated(arrays, voxel_size, name)
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
-    _check_shape(np.asarray(fine.voxel_down_sample(voxel_size).points), voxel_size, name)
+    coarse = fine.voxel_down_sample(voxel_size)
+    _check_shape(np.asarray(coarse.points), voxel_size, name)
     if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
         where = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
         _orient(fine, camera_location, voxel_size, where)
-    coarse = fine.voxel_down_sample(voxel_size)
+        coarse = fine.voxel_down_sample(voxel_size)  # again, averaging the new normals
     points = np.asarray(coarse.points).copy()
     point_normals = np.asarray(coarse.normals)
     lengths = np.linalg.norm(point_normals, axis=1, keepdims=True)

@@ -162,8 +162,7 @@ class SpectralStepper:
         self.option = option or SpectralRegistrationOption()
         self.cloud = cloud or CloudOption()
         self.voxel_size = float(voxel_size)
-        self.frame_origin = np.zeros(3) if frame_origin is None else np.asarray(
-            frame_origin, dtype=np.float64)
+        self.frame_origin = np.zeros(3) + (0.0 if frame_origin is None else frame_origin)
         prepared = self._prepare(target, "target")
         self.grid = TargetGrid(
             prepared.points, self.voxel_size, weighting=self.option.voxel_weighting,
@@ -180,7 +179,6 @@ class SpectralStepper:
         """Number of EGI smoothing levels (``option.egi_smoothing``)."""
         return len(self.option.egi_smoothing)
 
-    # -- preparation -------------------------------------------------------------------
     def _prepare(self, cloud: object, name: str) -> PreparedCloud:
         arrays = as_arrays(cloud, name)
         extent = float(np.max(np.ptp(arrays.points, axis=0)))
