@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
+from ._checks import check_instance
 from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
@@ -159,6 +160,8 @@ class SpectralStepper:
     ) -> None:
         if not (np.isfinite(voxel_size) and voxel_size > 0):
             raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
+        check_instance("option", option, SpectralRegistrationOption)
+        check_instance("cloud", cloud, CloudOption)
         self.option = option or SpectralRegistrationOption()
         self.cloud = cloud or CloudOption()
         self.voxel_size = float(voxel_size)
@@ -258,12 +261,10 @@ class SpectralStepper:
         """This stepper with the fixed EGI made only of the fixed cloud's normals within
         ``radius`` (metres) of one of the points ``near`` (metres, shape (K, 3)).
 
-        In a scene much larger than the moving cloud (a tabletop against one object's
-        model) the whole scene's EGI is dominated by the table and the other objects;
-        once the phase correlation has located the moving cloud, the normals around it
-        are the ones its EGI should match. The voxel grid and its spectra are shared.
-        Returns ``self`` when over ``FOCUS_SHARE`` of the normals are kept (nothing to
-        gain) or fewer than ``MIN_POINTS``.
+        In a scene (a tabletop against one object's model) the whole EGI is dominated by
+        the table and the other objects; once the moving cloud is located, the normals
+        around it are those its EGI should match. The voxel grid is shared. ``self``
+        when over ``FOCUS_SHARE`` of the normals are kept, or fewer than ``MIN_POINTS``.
         """
         near = np.asarray(near, dtype=np.float64).reshape(-1, 3)
         hits = self._normals_tree.query_ball_point(near, r=radius, return_sorted=False)
