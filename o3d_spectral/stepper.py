@@ -224,8 +224,7 @@ class SpectralStepper:
         return normalise(smooth(raw, self.option.egi_smoothing[level]))
 
     def _smoothed_levels(self, raw: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-        """Fixed-cloud EGI coefficients at every smoothing level."""
-        return [self._smooth(raw, level) for level in range(self.levels)]
+        return [self._smooth(raw, level) for level in range(self.levels)]  # every level
 
     def moving(
         self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None
