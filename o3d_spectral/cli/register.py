@@ -33,6 +33,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-iteration", type=int, default=100)
     parser.add_argument("--json", action="store_true", help="print a JSON object instead")
     parser.add_argument(
+        "--camera-location", type=float, nargs=3, metavar=("X", "Y", "Z"),
+        help="where the sensor was (metres), to orient normals estimated for a cloud without",
+    )
+    parser.add_argument(
+        "--target-viewpoint", default="auto", metavar="auto|none|X,Y,Z",
+        help="where the target's sensor was (metres, target frame) when it is a single view; "
+        "'auto' (default): the origin, when the target's normals face it; 'none': a model",
+    )
+    parser.add_argument("--save", type=Path, metavar="FILE",
+                        help="write the source moved by the result (any format Open3D writes)")
+    parser.add_argument(
         "--drop-nan", action="store_true",
         help="drop points with NaN or infinite coordinates (with a warning) instead of "
         "refusing the file",
@@ -84,7 +95,24 @@ def _read_init(path: Path) -> np.ndarray:
     return init
 
 
+def _viewpoint(text: str) -> str | tuple[float, ...] | None:
+    """``--target-viewpoint``: "auto", None ("none") or three coordinates."""
+    from o3d_spectral.cli import UsageError
+
+    if text in ("auto", "none"):
+        return None if text == "none" else text
+    try:
+        point = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        point = ()
+    if len(point) != 3:
+        raise UsageError(f"--target-viewpoint must be auto, none or X,Y,Z, got {text!r}")
+    return point
+
+
 def run(args: argparse.Namespace) -> int:
+    import open3d as o3d
+
     import o3d_spectral
 
     source = _read_cloud(args.source, drop_nan=args.drop_nan)
@@ -92,13 +120,15 @@ def run(args: argparse.Namespace) -> int:
     init = _read_init(args.init) if args.init else None
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
+    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
+                                     target_viewpoint=_viewpoint(args.target_viewpoint))
     if init is not None:
         result = o3d_spectral.registration_spectral(
-            source, target, args.voxel_size, init, option, criteria
+            source, target, args.voxel_size, init, option, criteria, cloud=cloud
         )
     else:
         result = o3d_spectral.registration_spectral_global(
-            source, target, args.voxel_size, option, criteria
+            source, target, args.voxel_size, option, criteria, cloud=cloud
         )
     if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
         raise FloatingPointError("the registration produced a non-finite transformation")
@@ -110,7 +140,12 @@ def run(args: argparse.Namespace) -> int:
         "converged": result.converged,
         "num_iterations": result.num_iterations,
         "run_time": result.run_time,
+        "confidence": result.confidence,
     }
+    if args.save:
+        moved = o3d.geometry.PointCloud(source).transform(result.transformation)
+        if not o3d.io.write_point_cloud(str(args.save), moved):
+            raise OSError(f"--save: Open3D could not write {args.save}")
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         print()
