@@ -20,8 +20,6 @@ o3d-spectral/real``; the environment variable ``O3D_SPECTRAL_REAL_DATA`` names a
 
 from __future__ import annotations
 
-import os
-import sys
 from functools import cache
 from pathlib import Path
 from typing import NamedTuple
@@ -29,6 +27,8 @@ from typing import NamedTuple
 import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
+
+from o3d_spectral._bundled import bundled_folder
 
 __all__ = [
     "DRAGON_ANGLES",
@@ -81,19 +81,8 @@ def real_dir() -> Path:
     FileNotFoundError
         If no candidate folder holds ``dragon/dragonStandRight.conf``.
     """
-    candidates = []
-    if env := os.environ.get("O3D_SPECTRAL_REAL_DATA"):
-        candidates.append(Path(env))
-    candidates.append(Path(__file__).resolve().parents[2] / "datasets" / "real")
-    candidates.append(Path(sys.prefix) / "share" / "o3d-spectral" / "real")
-    for folder in candidates:
-        if (folder / _MARKER).is_file():
-            return folder
-    raise FileNotFoundError(
-        "no bundled real data found; looked in "
-        + ", ".join(str(c) for c in candidates)
-        + ". Set O3D_SPECTRAL_REAL_DATA to a folder laid out as datasets/real."
-    )
+    return bundled_folder("real", "O3D_SPECTRAL_REAL_DATA",
+                          lambda folder: (folder / _MARKER).is_file(), "real data")
 
 
 @cache
