@@ -60,8 +60,12 @@ def main() -> int:
     group = parser.add_mutually_exclusive_group(required=True)
     group.add_argument("--record", type=Path, metavar="NPZ")
     group.add_argument("--compare", type=Path, metavar="NPZ")
+    parser.add_argument("--save", type=Path, metavar="NPZ",
+                        help="with --compare: also write this run's transformations")
     args = parser.parse_args()
     found = run(args.suites, args.count)
+    if args.save:
+        np.savez_compressed(args.save, **found)
     if args.record:
         commit = subprocess.run(
             ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=False
@@ -76,9 +80,12 @@ def main() -> int:
     for key, value in found.items():
         expected = reference[key]
         n = min(len(expected), len(value))
-        diff = float(np.max(np.abs(expected[:n] - value[:n])))
+        per_instance = np.abs(expected[:n] - value[:n]).reshape(n, -1).max(axis=1)
+        diff = float(per_instance.max())
         worst = max(worst, diff)
-        print(f"{key:20s} {n:3d} instances  max |difference| {diff:.3g}")
+        changed = int(np.sum(per_instance > TOLERANCE))
+        print(f"{key:20s} {n:3d} instances  max |difference| {diff:.3g}  "
+              f"({changed} over {TOLERANCE:g})")
     print(f"largest difference {worst:.3g} ({'within' if worst <= TOLERANCE else 'over'} "
           f"{TOLERANCE:g})")
     return 0 if worst <= TOLERANCE else 1

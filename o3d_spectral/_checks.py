@@ -11,6 +11,7 @@ import numbers
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 
 def check_bool(name: str, value: object) -> None:
@@ -63,6 +64,33 @@ def check_number(
     if not np.isfinite(float(value)):
         raise ValueError(f"{name} must be finite, got {value}")
     _bounds(name, float(value), low, high, low_open)
+
+
+def check_instance(name: str, value: object, cls: type, *, optional: bool = True) -> None:
+    """``value`` must be a ``cls`` (or None when ``optional``): another library's settings
+    object of a similar name (Open3D's ``ICPConvergenceCriteria``) is refused here."""
+    if (value is None and optional) or isinstance(value, cls):
+        return
+    raise TypeError(
+        f"{name} must be an o3d_spectral.{cls.__name__}"
+        f"{' or None' if optional else ''}, got {type(value).__module__}."
+        f"{type(value).__qualname__}"
+    )
+
+
+def check_transformation(init: object, name: str = "init") -> NDArray[np.float64]:
+    """``init`` as a 4x4 float64 array; ``ValueError`` unless it is a finite rigid
+    transformation."""
+    M = np.asarray(init, dtype=np.float64)
+    if M.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 matrix, got shape {M.shape}")
+    R = M[:3, :3]
+    finite = bool(np.all(np.isfinite(M)))
+    rigid = finite and np.allclose(R.T @ R, np.eye(3), atol=1e-6) and abs(
+        np.linalg.det(R) - 1.0) < 1e-6 and np.allclose(M[3], [0.0, 0.0, 0.0, 1.0])
+    if not rigid:
+        raise ValueError(f"{name} must be a finite rigid transformation (rotation + translation)")
+    return M
 
 
 def check_point(name: str, value: object) -> tuple[float, float, float] | None:

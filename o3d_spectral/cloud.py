@@ -6,11 +6,13 @@ caller's cloud is never modified) and :func:`prepare`.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 __all__ = [
     "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
@@ -19,6 +21,14 @@ __all__ = [
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
 MIN_POINTS = 10
+#: :func:`dense_bounds`: points beyond a gap of this many voxels along an axis, holding at
+#: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
+ISOLATED_GAP = 10.0
+ISOLATED_SHARE = 0.01
+#: Normals are oriented along the surface over at most this many points (:func:`_orient`).
+PROPAGATED_POINTS = 5000
+
+logger = logging.getLogger(__name__)
 
 CloudLike = "o3d.geometry.PointCloud | o3d.t.geometry.PointCloud | numpy.ndarray"
 
@@ -140,22 +150,101 @@ def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> 
     return bool(shared.any() and np.mean(spread[shared] > 3.0 * voxel_size) < 0.1)
 
 
+def dense_bounds(
+    points: ArrayLike, voxel_size: float, *, gap: float = ISOLATED_GAP,
+    share: float = ISOLATED_SHARE,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Bounds (metres, shape (3,) each) of a cloud without its isolated points.
+
+    Along each axis, the points beyond the outermost gap wider than ``gap`` voxels among
+    the ``share`` of points nearest either end are isolated: stray returns and flying
+    pixels far from the surfaces, which would otherwise size the voxel grids (20 points
+    2 m away from a 20 cm object make its grid a thousand times larger). Gaps inside the
+    cloud's bulk never cut it: at most ``share`` of the points go at each end.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Metres.
+    voxel_size : float
+        Metres.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    lower, upper = p.min(axis=0), p.max(axis=0)
+    k = int(share * len(p))
+    if k == 0:
+        return lower, upper
+    for axis in range(3):
+        ends = np.sort(np.partition(p[:, axis], (k, len(p) - k - 1))[: k + 1])
+        wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
+        if len(wide):
+            lower[axis] = ends[wide[-1] + 1]
+        ends = np.sort(np.partition(p[:, axis], len(p) - k - 1)[len(p) - k - 1 :])
+        wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
+        if len(wide):
+            upper[axis] = ends[wide[0]]
+    return lower, upper
+
+
+def _within(points: NDArray[np.float64], bounds: tuple[NDArray, NDArray]) -> NDArray[np.bool_]:
+    return np.all((points >= bounds[0]) & (points <= bounds[1]), axis=1)
+
+
+def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> CloudArrays:
+    """``arrays`` without the points outside :func:`dense_bounds` (logged)."""
+    keep = _within(arrays.points, dense_bounds(arrays.points, voxel_size))
+    if keep.all():
+        return arrays
+    logger.info("%s: %d isolated points (beyond a %g-voxel gap) left out", name,
+                int((~keep).sum()), ISOLATED_GAP)
+    normals = None if arrays.normals is None else arrays.normals[keep]
+    return CloudArrays(arrays.points[keep], normals)
+
+
 def _orient(
-    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float
+    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float,
+    origin: NDArray[np.float64],
 ) -> None:
-    """Orient estimated normals in place (on our own copy)."""
+    """Orient estimated normals in place (on our own copy); ``origin``: where the
+    caller's frame has its origin (metres)."""
     points = np.asarray(cloud.points)
-    origin_outside = np.any(points.min(axis=0) > 0.0) or np.any(points.max(axis=0) < 0.0)
-    if camera_location is None and origin_outside and is_depth_map(points, [0, 0, 0], voxel_size):
-        camera_location = np.zeros(3)  # a scan in its sensor's frame
+    outside = np.any(points.min(axis=0) > origin) or np.any(points.max(axis=0) < origin)
+    if camera_location is None and outside and is_depth_map(points, origin, voxel_size):
+        camera_location = origin  # a scan in its sensor's frame
     if camera_location is not None:
         cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
         return
     # A model: propagate one orientation along the surface, then point it outward.
-    cloud.orient_normals_consistent_tangent_plane(10)
-    normals = np.asarray(cloud.normals)
+    normals = _propagated(cloud)
     if np.sum(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
-        cloud.normals = o3d.utility.Vector3dVector(-normals)
+        normals = -normals
+    cloud.normals = o3d.utility.Vector3dVector(normals)
+
+
+def _propagated(cloud: o3d.geometry.PointCloud) -> NDArray[np.float64]:
+    """The cloud's normals turned to one consistent orientation along the surface.
+
+    The orientation is propagated (Open3D's minimum spanning tree over tangent planes,
+    whose cost grows fast with the number of points) over every k-th point, at most
+    ``PROPAGATED_POINTS``, with their own normals, centred at the origin; then each
+    normal takes the sign of the nearest propagated one. A plane (no spread across it)
+    takes one side of it.
+    """
+    points, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
+    centred = points - points.mean(axis=0)  # Qhull loses precision far from the origin
+    spread = np.linalg.svd(centred[:: max(len(points) // 2000, 1)], compute_uv=False)
+    if spread[2] < 1e-6 * spread[0]:  # a plane: one normal, and nothing for Qhull to do
+        _, _, axes = np.linalg.svd(centred[:: max(len(points) // 2000, 1)])
+        reference = np.broadcast_to(axes[2], normals.shape)
+    else:
+        step = int(np.ceil(len(points) / PROPAGATED_POINTS))
+        coarse = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centred[::step]))
+        coarse.normals = o3d.utility.Vector3dVector(normals[::step])
+        coarse.orient_normals_consistent_tangent_plane(10)
+        _, nearest = cKDTree(np.asarray(coarse.points)).query(centred)
+        reference = np.asarray(coarse.normals)[nearest]
+    agree = np.einsum("ij,ij->i", normals, reference) >= 0.0
+    return np.where(agree[:, None], normals, -normals)
 
 
 @dataclass(frozen=True)
@@ -200,6 +289,7 @@ def prepare(
     max_egi_points: int = 50_000,
     normal_radius: float | None = None,
     camera_location: ArrayLike | None = None,
+    origin: ArrayLike | None = None,
     name: str = "cloud",
 ) -> PreparedCloud:
     """Down-sample a cloud and provide unit normals.
@@ -227,6 +317,9 @@ def prepare(
         Metres; ``2.5 * voxel_size`` when omitted.
     camera_location : array_like, shape (3,), optional
         Sensor position in the cloud's frame, metres.
+    origin : array_like, shape (3,), optional
+        Where the origin of the frame the caller gave the cloud in lies, metres (a
+        scan's sensor when it is in its sensor's frame); the origin when omitted.
     name : str
         Argument name used in error messages.
 
@@ -240,13 +333,16 @@ def prepare(
         When fewer than :data:`MIN_POINTS` voxels are occupied, or the points are
         (nearly) collinear.
     """
+    arrays = _without_isolated(arrays, voxel_size, name)
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
-    _check_shape(np.asarray(fine.voxel_down_sample(voxel_size).points), voxel_size, name)
+    coarse = fine.voxel_down_sample(voxel_size)
+    _check_shape(np.asarray(coarse.points), voxel_size, name)
     if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
-        _orient(fine, camera_location, voxel_size)
-    coarse = fine.voxel_down_sample(voxel_size)
+        where = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
+        _orient(fine, camera_location, voxel_size, where)
+        coarse = fine.voxel_down_sample(voxel_size)  # again, averaging the new normals
     points = np.asarray(coarse.points).copy()
     point_normals = np.asarray(coarse.normals)
     lengths = np.linalg.norm(point_normals, axis=1, keepdims=True)

@@ -22,9 +22,12 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .harmonics import grid_angles, project, quadrature_weights, sht
+from .harmonics import grid_angles, project, quadrature_weights, real_sph_harm, sht
 
-__all__ = ["histogram", "coefficients", "smooth", "normalise", "grid_points", "facing"]
+__all__ = [
+    "histogram", "coefficients", "harmonics_table", "smooth", "normalise", "grid_points",
+    "facing",
+]
 
 
 def _unit(normals: ArrayLike) -> NDArray[np.float64]:
@@ -115,6 +118,23 @@ def coefficients(
     else:
         F = project(_unit(normals), weights, bandwidth)
     return smooth(F, sigma) if sigma > 0 else F
+
+
+def harmonics_table(normals: ArrayLike, bandwidth: int) -> NDArray[np.float64]:
+    """Real spherical harmonics at each normal, flattened: ``[i, l * (2B - 1) + m + B - 1]
+    = S_lm(n_i)``, shape (N, B (2B - 1)).
+
+    For a cloud whose EGI is built again and again from subsets of its normals with
+    changing weights (the visible part of a moving cloud at each pose), the coefficients
+    of a subset ``k`` with weights ``w`` are ``(w @ table[k]).reshape(B, 2B - 1)``,
+    :func:`coefficients` without recomputing the harmonics. Zero normals give rows of
+    no meaning: leave them out of every subset.
+    """
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    length = np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+    theta = np.arccos(np.clip(n[:, 2] / length, -1.0, 1.0))
+    phi = np.arctan2(n[:, 1], n[:, 0])
+    return real_sph_harm(bandwidth, theta, phi).reshape(len(n), -1)
 
 
 def normalise(coefficients: ArrayLike) -> NDArray[np.float64]:

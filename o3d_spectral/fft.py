@@ -1,13 +1,14 @@
 """Planned 3D real FFTs: FFTW through pyfftw when installed, ``scipy.fft`` otherwise.
 
 A :class:`RealFFT3` is built once per grid shape and reused on every iteration (FFTW
-plans are measured once; ``scipy.fft`` needs no plan). Single-threaded by default, the
-paper's setting.
+plans are measured once; ``scipy.fft`` needs no plan), one per thread
+(:func:`fft_plan`). Single-threaded by default, the paper's setting.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+import threading
+from collections import OrderedDict
 
 import numpy as np
 import scipy.fft
@@ -93,12 +94,35 @@ class RealFFT3:
         return self._inverse(spectrum)
 
 
-@lru_cache(maxsize=8)
+#: Plans kept per thread (the least recently used beyond this are dropped).
+CACHED_PLANS = 8
+
+_plans = threading.local()  # each thread its own plans: a plan's buffers are overwritten
+_planning = threading.Lock()  # by every call; and FFTW's planner is not thread-safe
+
+
 def fft_plan(
     shape: tuple[int, int, int],
     threads: int = 1,
     planning: str = "estimate",
     precision: str = "double",
 ) -> RealFFT3:
-    """Cached :class:`RealFFT3` for ``shape`` (plans are reused across calls)."""
-    return RealFFT3(shape, threads=threads, planning=planning, precision=precision)
+    """Cached :class:`RealFFT3` for ``shape``, reused across calls in one thread.
+
+    Each thread has its own plans: a plan returns views of its internal buffers, which
+    the next call overwrites, so two threads must never share one.
+    """
+    cache = getattr(_plans, "cache", None)
+    if cache is None:
+        cache = _plans.cache = OrderedDict()
+    key = (tuple(int(n) for n in shape), threads, planning, precision)
+    plan = cache.get(key)
+    if plan is None:
+        with _planning:
+            plan = RealFFT3(key[0], threads=threads, planning=planning, precision=precision)
+        cache[key] = plan
+        if len(cache) > CACHED_PLANS:
+            cache.popitem(last=False)
+    else:
+        cache.move_to_end(key)
+    return plan

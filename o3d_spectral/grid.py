@@ -125,8 +125,8 @@ def splat(
         idx = np.floor(u).astype(np.int64)
     inside = np.all((idx >= 0) & (idx < shape), axis=1)
     flat = np.ravel_multi_index(idx[inside].T, full_shape)
-    values = np.bincount(flat, weights=w[inside], minlength=grid.size)
+    values = np.bincount(flat, weights=w[inside])  # up to the last occupied voxel only
     if mode == "binary":
         values = (values > 0).astype(np.float64)
-    grid.reshape(-1)[:] = values
+    grid.reshape(-1)[: len(values)] = values
     return grid

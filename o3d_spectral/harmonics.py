@@ -206,6 +206,10 @@ def isht(coefficients: ArrayLike) -> NDArray[np.float64]:
     return np.einsum("jlm,lm->jm", P, F) @ trig.T
 
 
+#: Directions projected at once by :func:`project` (its tables stay in cache).
+PROJECTION_CHUNK = 8192
+
+
 def project(
     directions: ArrayLike, weights: ArrayLike | None, bandwidth: int
 ) -> NDArray[np.float64]:
@@ -229,8 +233,13 @@ def project(
     """
     B = _check_bandwidth(bandwidth)
     n = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
     w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=np.float64)
+    if len(n) > PROJECTION_CHUNK:  # in chunks: the Legendre table is (B, B, N)
+        return sum(
+            project(n[i : i + PROJECTION_CHUNK], w[i : i + PROJECTION_CHUNK], B)
+            for i in range(0, len(n), PROJECTION_CHUNK)
+        )
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
     P = legendre(B - 1, np.clip(n[:, 2], -1.0, 1.0))  # (l, |m|, N)
     # exp(i m phi) for m = 0..B-1 by repeated multiplication (no trigonometric calls).
     rho = np.hypot(n[:, 0], n[:, 1])

@@ -76,7 +76,8 @@ class SpectralRegistrationOption:
         half as large: a small object in a large scene). None: the whole fixed grid every
         iteration (the paper).
     max_grid_memory : float
-        Largest memory (bytes) one voxel grid's FFT buffers may take.
+        Largest memory (bytes) one voxel grid's FFT buffers, or the global search's SO(3)
+        correlation grid, may take.
     """
 
     bandwidth: int = 16
@@ -211,6 +212,19 @@ class GlobalSearchOption:
         for name in ("egi_focus", "search_visibility"):
             check_bool(name, getattr(self, name))
         check_int("search_samples", self.search_samples, low=3, optional=True)
+
+    def check_memory(self, option: SpectralRegistrationOption) -> None:
+        """``ValueError`` when the SO(3) correlation grid (complex, ``samples^3``, three
+        transforms against a single view) would exceed ``option.max_grid_memory``."""
+        samples = self.samples(option.bandwidth)
+        need = 3.0 * 16.0 * float(samples) ** 3
+        if need > option.max_grid_memory:
+            raise ValueError(
+                f"the global search's SO(3) grid of {samples}^3 rotations needs about "
+                f"{need / 2**20:.0f} MiB, over max_grid_memory={option.max_grid_memory:.3g} "
+                f"bytes: lower GlobalSearchOption.search_samples or the bandwidth "
+                f"({option.bandwidth}), or raise max_grid_memory"
+            )
 
     def samples(self, bandwidth: int) -> int:
         """Euler-angle samples per axis for ``bandwidth``; ``ValueError`` when too few."""

@@ -15,7 +15,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .options import RefinementOption
 
-__all__ = ["point_to_plane_icp", "point_to_plane_refinement", "refine", "GUARD_SHARE"]
+__all__ = [
+    "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
+]
 
 #: The polished pose is rejected when it keeps at most this share of the unpolished
 #: pose's inliers (it slid off the surface).
@@ -23,6 +25,27 @@ GUARD_SHARE = 0.5
 
 #: The tutorial's correspondence distance, voxels.
 TUTORIAL_DISTANCE = 0.4
+
+
+def near_pose(
+    target: o3d.geometry.PointCloud,
+    source_points: NDArray[np.float64],
+    transformation: NDArray[np.float64],
+    margin: float,
+) -> tuple[o3d.geometry.PointCloud, NDArray[np.int64]]:
+    """The target's points within ``margin`` (metres) of the ball holding the source
+    points (N, 3) at ``transformation`` (4, 4), and their indices in ``target``.
+
+    A correspondence search up to ``margin`` from the posed source finds exactly the same
+    points in this crop as in the whole target, and a KD-tree of a scene's neighbourhood
+    of the object is much cheaper to build than one of the whole scene.
+    """
+    centroid = source_points.mean(axis=0)
+    reach = float(np.max(np.linalg.norm(source_points - centroid, axis=1))) + margin
+    centre = transformation[:3, :3] @ centroid + transformation[:3, 3]
+    points = np.asarray(target.points)
+    keep = np.flatnonzero(np.sum((points - centre) ** 2, axis=1) <= reach * reach)
+    return target.select_by_index(keep), keep
 
 
 def point_to_plane_icp(

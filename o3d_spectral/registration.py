@@ -20,7 +20,8 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from . import so3
+from . import centring
+from ._checks import check_instance, check_number, check_transformation
 from .cloud import CloudArrays, as_arrays, to_legacy
 from .law import Climb, IterationRecord, climb
 from .options import (
@@ -30,7 +31,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .refinement import refine
+from .refinement import near_pose, refine
 from .search import confidence, global_search
 from .stepper import MovingCloud, SpectralStepper
 
@@ -40,6 +41,9 @@ logger = logging.getLogger(__name__)
 
 #: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
 DEFAULT_REFINEMENT = RefinementOption()
+#: The refinement sees the target within the source's radius, or this many voxels if
+#: more, of the ball holding the posed source.
+REFINEMENT_MARGIN = 10.0
 
 
 class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
@@ -105,6 +109,7 @@ class _Run:
     init: NDArray[np.float64]
     criteria: SpectralConvergenceCriteria
     start: float
+    offset: NDArray[np.float64] | None  # where the clouds were centred (centring module)
 
     def climb(self, state: Climb, iterations: int) -> None:
         """The law on ``state`` for at most ``iterations``."""
@@ -112,14 +117,17 @@ class _Run:
         climb(self.stepper, self.moving, state, iterations, tolerance, self.init, self.start)
 
 
-def _check_transformation(init: ArrayLike) -> NDArray[np.float64]:
-    M = np.asarray(init, dtype=np.float64)
-    if M.shape != (4, 4):
-        raise ValueError(f"init must be a 4x4 matrix, got shape {M.shape}")
-    rigid = so3.is_rotation(M[:3, :3]) and np.allclose(M[3], [0.0, 0.0, 0.0, 1.0])
-    if not (rigid and np.all(np.isfinite(M))):
-        raise ValueError("init must be a finite rigid transformation (rotation + translation)")
-    return M
+def _check_settings(**settings: object) -> None:
+    """Each setting is None or an instance of its o3d_spectral class; the distance a
+    positive number of metres or None."""
+    classes = {"option": SpectralRegistrationOption, "criteria": SpectralConvergenceCriteria,
+               "cloud": CloudOption, "search": GlobalSearchOption,
+               "refinement": RefinementOption}
+    for name, value in settings.items():
+        if name == "max_correspondence_distance":
+            check_number(name, value, low=0.0, low_open=True, optional=True)
+        else:
+            check_instance(name, value, classes[name])
 
 
 def _start(
@@ -129,12 +137,17 @@ def _start(
 ) -> _Run:
     """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
     start = time.perf_counter()
-    init = _check_transformation(init)
+    init = check_transformation(init)
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
-    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud)
+    c, origin = centring.offset(target), None
+    if c is not None:  # far from the origin: register in a frame centred on the target
+        source, target = centring.centred_arrays(source, c), centring.centred_arrays(target, c)
+        cloud = centring.centred_option(cloud or CloudOption(), c)
+        init, origin = centring.shifted(init, c), -c
+    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
     moving = stepper.moving(source, "source", transformation=init)
     criteria = criteria or SpectralConvergenceCriteria()
-    return _Run(source, target, stepper, moving, init, criteria, start)
+    return _Run(source, target, stepper, moving, init, criteria, start, c)
 
 
 def _finish(
@@ -151,22 +164,44 @@ def _finish(
     source, target = to_legacy(run.source), to_legacy(run.target)  # once, for both
     voxel_size = run.stepper.voxel_size
     if refinement is not None:
-        transformation = refine(
-            source, _with_normals(target, run.stepper), voxel_size, transformation, refinement
-        )
+        transformation = _refined(run, source, target, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
-    distance = max_correspondence_distance or voxel_size
-    evaluation = o3d.pipelines.registration.evaluate_registration(
-        source, target, distance, transformation
-    )
+    distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
+    near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
-    result.fitness = evaluation.fitness
-    result.inlier_rmse = evaluation.inlier_rmse
-    result.correspondence_set = evaluation.correspondence_set
+    if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
+        evaluation = o3d.pipelines.registration.evaluate_registration(
+            source, near, distance, transformation
+        )
+        pairs = np.asarray(evaluation.correspondence_set)
+        pairs[:, 1] = indices[pairs[:, 1]]  # back to the whole target's indices
+        result.fitness = evaluation.fitness
+        result.inlier_rmse = evaluation.inlier_rmse
+        result.correspondence_set = o3d.utility.Vector2iVector(pairs)
+    if run.offset is not None:  # back to the caller's frame
+        result.transformation = centring.shifted(transformation, -run.offset)
+        result.history = centring.uncentred_history(result.history, run.offset)
+        result.hypotheses = [(centring.shifted(M, -run.offset), s) for M, s in result.hypotheses]
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
+
+
+def _refined(
+    run: _Run, source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud,
+    transformation: NDArray[np.float64], refinement: RefinementOption,
+) -> NDArray[np.float64]:
+    """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
+    of a scene within the source's size of it (the polish moves the source far less)."""
+    fixed = _with_normals(target, run.stepper)
+    points = run.source.points
+    reach = float(np.max(np.linalg.norm(points - points.mean(axis=0), axis=1)))
+    margin = max(reach, REFINEMENT_MARGIN * run.stepper.voxel_size)
+    near, kept = near_pose(fixed, points, transformation, margin)
+    if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
+        return transformation
+    return refine(source, near, run.stepper.voxel_size, transformation, refinement)
 
 
 def _with_normals(
@@ -254,6 +289,8 @@ def registration_spectral(
     >>> result = o3d_spectral.registration_spectral(source, target, 0.008)  # doctest: +SKIP
     >>> source.transform(result.transformation)  # doctest: +SKIP
     """
+    _check_settings(option=option, criteria=criteria, cloud=cloud, refinement=refinement,
+                    max_correspondence_distance=max_correspondence_distance)
     run = _start(source, target, voxel_size, init, option, criteria, cloud)
     best = Climb(run.moving.centroid)
     run.climb(best, run.criteria.max_iteration)
@@ -320,8 +357,10 @@ def registration_spectral_global(
     --------
     >>> result = o3d_spectral.registration_spectral_global(model, scan, 0.008)  # doctest: +SKIP
     """
+    _check_settings(option=option, criteria=criteria, search=search, cloud=cloud,
+                    refinement=refinement, max_correspondence_distance=max_correspondence_distance)
     search = search or GlobalSearchOption()
-    search.samples((option or SpectralRegistrationOption()).bandwidth)  # check it early
+    search.check_memory(option or SpectralRegistrationOption())  # before any work
     run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
     iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
     tolerance = run.criteria.tolerances(voxel_size)

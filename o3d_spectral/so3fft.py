@@ -27,6 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import maximum_filter
 
 from . import so3
 from .egi import grid_points
@@ -209,16 +210,9 @@ def peaks(
         Rotations and their correlation values, best first.
     """
     v = grid.values
-    # Local maxima: alpha and gamma wrap around; beta is padded with -inf at its ends.
-    padded = np.pad(v, ((1, 1), (0, 0), (0, 0)), constant_values=-np.inf)
-    is_peak = np.ones(v.shape, dtype=bool)
-    for dj in (-1, 0, 1):
-        shifted_j = padded[1 + dj : 1 + dj + v.shape[0]]
-        for da in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                if dj == da == dc == 0:
-                    continue
-                is_peak &= v >= np.roll(shifted_j, (-da, -dc), axis=(1, 2))
+    # Local maxima over the 26 neighbours: alpha and gamma wrap around; beta ends at 0, pi.
+    largest = maximum_filter(v, size=3, mode=("constant", "wrap", "wrap"), cval=-np.inf)
+    is_peak = v >= largest
     order = np.argsort(v[is_peak])[::-1]
     indices = np.argwhere(is_peak)[order]
     chosen: list[tuple[NDArray[np.float64], float]] = []

@@ -11,25 +11,25 @@ the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full correct
 - rotation (radians): ``grad C_r`` (eq. cr_derivative) divided by the correlation's
   curvature (:func:`o3d_spectral.rotation.rotation_step`),
 
-and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The law's loop
-is :mod:`o3d_spectral.law`; the search over all of SO(3) is :mod:`o3d_spectral.search`;
-visual servoing's cycle is :class:`o3d_spectral.servo.ServoLaw`. A stepper holds no state
-of a run: one stepper serves many moving clouds.
+and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The loop is
+:mod:`o3d_spectral.law`; a stepper holds no state of a run: it serves many moving clouds.
 """
 
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
+from ._checks import check_instance
 from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
 from .egi import coefficients as egi_coefficients
-from .egi import facing, normalise, smooth
+from .egi import facing, harmonics_table, normalise, smooth
 from .options import CloudOption, SpectralRegistrationOption
 from .rotation import RotationGradient, curvature_scale, gradient, rotation_step
 from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
@@ -40,6 +40,9 @@ __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
 FOCUS_SHARE = 0.9
+#: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
+#: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
+MAX_HARMONICS_TABLE = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,10 @@ class MovingCloud:
         Largest distance of a point from the centroid, metres.
     coefficients : ndarray, shape (B, 2B - 1)
         EGI coefficients ``F^l`` before smoothing and normalisation.
+    harmonics : ndarray, shape (M, B (2B - 1)), or None
+        Real spherical harmonics at each of ``point_normals``
+        (:func:`o3d_spectral.egi.harmonics_table`), kept when the fixed cloud is a
+        single view: the visible part's EGI is then one product per pose.
     """
 
     points: NDArray[np.float64]
@@ -65,6 +72,7 @@ class MovingCloud:
     centroid: NDArray[np.float64]
     radius: float
     coefficients: NDArray[np.float64]
+    harmonics: NDArray[np.float64] | None = None
 
     def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
         """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
@@ -138,17 +146,26 @@ class SpectralStepper:
     option : SpectralRegistrationOption, optional
     cloud : CloudOption, optional
         Normal estimation and the target's sensor position.
+    frame_origin : array_like, shape (3,), optional
+        Where the origin of the caller's frame lies in the clouds' frame (metres): the
+        sensor of a scan given in its sensor's frame (``target_viewpoint="auto"``, depth
+        maps). The origin when omitted; the registration calls pass it when they centre
+        clouds given far from the origin.
     """
 
     def __init__(
         self, target: object, voxel_size: float, *,
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
+        frame_origin: ArrayLike | None = None,
     ) -> None:
         if not (np.isfinite(voxel_size) and voxel_size > 0):
             raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
+        check_instance("option", option, SpectralRegistrationOption)
+        check_instance("cloud", cloud, CloudOption)
         self.option = option or SpectralRegistrationOption()
         self.cloud = cloud or CloudOption()
         self.voxel_size = float(voxel_size)
+        self.frame_origin = np.zeros(3) + (0.0 if frame_origin is None else frame_origin)
         prepared = self._prepare(target, "target")
         self.grid = TargetGrid(
             prepared.points, self.voxel_size, weighting=self.option.voxel_weighting,
@@ -165,7 +182,6 @@ class SpectralStepper:
         """Number of EGI smoothing levels (``option.egi_smoothing``)."""
         return len(self.option.egi_smoothing)
 
-    # -- preparation -------------------------------------------------------------------
     def _prepare(self, cloud: object, name: str) -> PreparedCloud:
         arrays = as_arrays(cloud, name)
         extent = float(np.max(np.ptp(arrays.points, axis=0)))
@@ -177,8 +193,13 @@ class SpectralStepper:
         return prepare(
             arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
             normal_radius=self.cloud.normal_radius, camera_location=self.cloud.camera_location,
-            name=name,
+            origin=self.frame_origin, name=name,
         )
+
+    @cached_property
+    def _normals_tree(self) -> cKDTree:
+        """KD-tree of the fixed cloud's normal points (:meth:`focused`), built once."""
+        return cKDTree(self.target_normal_points)
 
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
         """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
@@ -187,7 +208,7 @@ class SpectralStepper:
             return None
         if not isinstance(choice, str):
             return np.asarray(choice, dtype=np.float64)
-        sensor = np.zeros(3)
+        sensor = self.frame_origin
         has_normal = np.any(target.point_normals != 0.0, axis=1)
         toward = np.einsum("ij,ij->i", target.point_normals, sensor - target.points) > 0.0
         return sensor if toward[has_normal].mean() >= 0.9 else None
@@ -203,8 +224,7 @@ class SpectralStepper:
         return normalise(smooth(raw, self.option.egi_smoothing[level]))
 
     def _smoothed_levels(self, raw: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-        """Fixed-cloud EGI coefficients at every smoothing level."""
-        return [self._smooth(raw, level) for level in range(self.levels)]
+        return [self._smooth(raw, level) for level in range(self.levels)]  # every level
 
     def moving(
         self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None
@@ -229,22 +249,26 @@ class SpectralStepper:
             point_normals, normals = point_normals @ M[:3, :3].T, normals @ M[:3, :3].T
         centroid = points.mean(axis=0)
         radius = float(np.max(np.linalg.norm(points - centroid, axis=1)))
-        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals))
+        B = self.option.bandwidth
+        table = None
+        fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
+        if self.viewpoint is not None and not self.option.egi_binned and fits:
+            table = harmonics_table(point_normals, B)
+        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table)
 
     def focused(self, near: ArrayLike, radius: float) -> SpectralStepper:
         """This stepper with the fixed EGI made only of the fixed cloud's normals within
         ``radius`` (metres) of one of the points ``near`` (metres, shape (K, 3)).
 
-        In a scene much larger than the moving cloud (a tabletop against one object's
-        model) the whole scene's EGI is dominated by the table and the other objects;
-        once the phase correlation has located the moving cloud, the normals around it
-        are the ones its EGI should match. The voxel grid and its spectra are shared.
-        Returns ``self`` when over ``FOCUS_SHARE`` of the normals are kept (nothing to
-        gain) or fewer than ``MIN_POINTS``.
+        In a scene (a tabletop against one object's model) the whole EGI is dominated by
+        the table and the other objects; once the moving cloud is located, the normals
+        around it are those its EGI should match. The voxel grid is shared. ``self``
+        when over ``FOCUS_SHARE`` of the normals are kept, or fewer than ``MIN_POINTS``.
         """
-        tree = cKDTree(np.asarray(near, dtype=np.float64).reshape(-1, 3))
-        distances, _ = tree.query(self.target_normal_points, distance_upper_bound=radius)
-        kept = np.isfinite(distances)
+        near = np.asarray(near, dtype=np.float64).reshape(-1, 3)
+        hits = self._normals_tree.query_ball_point(near, r=radius, return_sorted=False)
+        kept = np.zeros(len(self.target_normal_points), dtype=bool)
+        kept[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])] = True
         if kept.sum() < MIN_POINTS or kept.mean() > FOCUS_SHARE:
             return self
         out = copy.copy(self)
@@ -277,7 +301,7 @@ class SpectralStepper:
         matches the fixed one (searched near ``around``, metres, when given): its centroid
         there (metres), the phase-correlation peak height and ``J_t`` before the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
-        placed = self.grid.correlate(moved, moving.radius, moving.centroid, around)
+        placed = self.grid.place(moved, moving.radius, moving.centroid, around)
         return moving.centroid + placed.shift, placed.peak, placed.cost
 
     def rotation_grid(
@@ -330,14 +354,24 @@ class SpectralStepper:
         raw_egi = moving.coefficients
         if toward is not None:
             # A sensor samples a surface in proportion to its projected area: cos(incidence).
-            raw_egi = self._egi(moving.point_normals[toward], cosine[toward])
-        placed = self.grid.correlate(moved, moving.radius, moving.centroid + T, around)
+            raw_egi = self._visible_egi(moving, toward, cosine[toward])
+        placed = self.grid.place(moved, moving.radius, moving.centroid + T, around)
         # Rotation: gradient of the EGI correlation, scaled to an angle.
         F, G = self._smooth(raw_egi, level), self.target_coefficients[level]
         local = gradient(F, G, R)
         scale = curvature_scale(F, G)
         step = rotation_step(local, scale, preconditioned=self.option.preconditioned)
         return Evaluation.of(placed.shift, step, local, placed.peak, placed.cost)
+
+    def _visible_egi(
+        self, moving: MovingCloud, toward: NDArray[np.bool_], weights: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """EGI coefficients of the moving cloud's point normals selected by ``toward``,
+        weighted by ``weights`` (in the cloud's own frame: the pose turns them later)."""
+        if moving.harmonics is None:
+            return self._egi(moving.point_normals[toward], weights)
+        B = self.option.bandwidth
+        return (weights @ moving.harmonics[toward]).reshape(B, 2 * B - 1)
 
     def increments(
         self, evaluation: Evaluation

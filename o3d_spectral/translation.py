@@ -74,6 +74,16 @@ def gaussian_window(
     return window
 
 
+@lru_cache(maxsize=8)
+def _full_window_sum(shape: tuple[int, int, int], sigma: float, dtype: type) -> float:
+    """Sum of :func:`gaussian_window` over the full spectrum (both halves), float64."""
+    window = gaussian_window(shape, sigma, dtype)
+    total = 2.0 * window.sum(dtype=np.float64) - window[..., 0].sum(dtype=np.float64)
+    if shape[2] % 2 == 0:
+        total -= window[..., -1].sum(dtype=np.float64)
+    return float(total)
+
+
 def _subvoxel(values: NDArray[np.float64], index: tuple[int, ...]) -> NDArray[np.float64]:
     """Offset in [-0.5, 0.5] of the peak from ``index`` along each axis (Gaussian fit)."""
     offsets = np.zeros(3)
@@ -126,21 +136,20 @@ def cross_power_peak(
     PeakEstimate
         The shift of ``g`` relative to ``f``, voxels.
     """
-    cross = G * np.conj(F)
+    cross = np.conjugate(F)
+    cross *= G
     magnitude = np.abs(cross)
-    cross /= np.maximum(magnitude, eps * magnitude.max() + 1e-300)
-    window = gaussian_window(fft.shape, sigma, magnitude.dtype.type)
-    cross *= window
+    np.maximum(magnitude, eps * float(magnitude.max()) + 1e-300, out=magnitude)
+    dtype = magnitude.dtype.type
+    # Whitened and windowed in one pass: cross * (window / |cross|).
+    cross *= np.divide(gaussian_window(fft.shape, sigma, dtype), magnitude, out=magnitude)
     delta = fft.inverse(cross)
     index = np.unravel_index(int(np.argmax(delta)), delta.shape)
     shape = np.asarray(delta.shape)
     limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
     integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
     # Height of a perfect match: the window's sum over the full spectrum over the grid size.
-    full_sum = 2.0 * window.sum(dtype=np.float64) - window[..., 0].sum(dtype=np.float64)
-    if fft.shape[2] % 2 == 0:
-        full_sum -= window[..., -1].sum(dtype=np.float64)
-    peak = float(delta[index] * np.prod(shape) / full_sum)
+    peak = float(delta[index] * np.prod(shape) / _full_window_sum(fft.shape, sigma, dtype))
     return PeakEstimate(integer + _subvoxel(delta, index), peak)
 
 

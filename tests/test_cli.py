@@ -35,6 +35,28 @@ def test_register_prints_matrix_and_json(tmp_path, capsys):
     assert "o3d-spectral: INFO: register done in" in err
 
 
+def test_register_saves_the_moved_source_and_takes_viewpoints(tmp_path, capsys):
+    """--save writes the source moved onto the target; --target-viewpoint none treats the
+    target as a model; a malformed viewpoint is a usage error (exit 2)."""
+    source = sample_model("mustard_bottle", 4000)
+    T = np.eye(4)
+    T[:3, 3] = [0.015, -0.01, 0.0]
+    o3d.io.write_point_cloud(str(tmp_path / "source.ply"), source)
+    o3d.io.write_point_cloud(str(tmp_path / "target.ply"),
+                             o3d.geometry.PointCloud(source).transform(T))
+    args = ["register", str(tmp_path / "source.ply"), str(tmp_path / "target.ply"),
+            "--voxel-size", "0.008", "--init", str(tmp_path / "init.txt")]
+    np.savetxt(tmp_path / "init.txt", np.eye(4))
+    saved = tmp_path / "moved.ply"
+    assert main([*args, "--target-viewpoint", "none", "--save", str(saved)]) == 0
+    moved = np.asarray(o3d.io.read_point_cloud(str(saved)).points)
+    expected = np.asarray(source.points) + T[:3, 3]
+    assert np.abs(moved - expected).max() < 2e-3
+    capsys.readouterr()
+    assert main([*args, "--target-viewpoint", "0,0"]) == 2
+    assert "--target-viewpoint" in capsys.readouterr().err
+
+
 def test_register_reports_bad_input(tmp_path, capsys):
     """A failed run exits 1 with one line naming the file; the traceback only with -vv."""
     missing = tmp_path / "missing.ply"

@@ -51,3 +51,17 @@ def test_normalise(rng):
     assert np.all(F[0] == 0)
     with pytest.raises(ValueError, match="no rotation information"):
         egi.normalise(np.eye(6, 11) * [[1]] * (np.arange(6)[:, None] == 0))
+
+
+def test_harmonics_table_gives_the_coefficients_of_any_weighted_subset():
+    rng = np.random.default_rng(3)
+    normals = rng.normal(size=(200, 3))
+    table = egi.harmonics_table(normals, 12)
+    assert table.shape == (200, 12 * 23)
+    subset = rng.random(200) < 0.4
+    weights = rng.random(subset.sum())
+    np.testing.assert_allclose(
+        (weights @ table[subset]).reshape(12, 23),
+        egi.coefficients(normals[subset], 12, weights=weights),
+        atol=1e-12,
+    )

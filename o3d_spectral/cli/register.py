@@ -32,39 +32,106 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--bandwidth", type=int, default=16, help="EGI bandwidth B (l < B)")
     parser.add_argument("--max-iteration", type=int, default=100)
     parser.add_argument("--json", action="store_true", help="print a JSON object instead")
+    parser.add_argument(
+        "--camera-location", type=float, nargs=3, metavar=("X", "Y", "Z"),
+        help="where the sensor was (metres), to orient normals estimated for a cloud without",
+    )
+    parser.add_argument(
+        "--target-viewpoint", default="auto", metavar="auto|none|X,Y,Z",
+        help="where the target's sensor was (metres, target frame) when it is a single view; "
+        "'auto' (default): the origin, when the target's normals face it; 'none': a model",
+    )
+    parser.add_argument("--save", type=Path, metavar="FILE",
+                        help="write the source moved by the result (any format Open3D writes)")
+    parser.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop points with NaN or infinite coordinates (with a warning) instead of "
+        "refusing the file",
+    )
     parser.set_defaults(func=run)
 
 
-def _read_cloud(path: Path):
+def _read_cloud(path: Path, *, drop_nan: bool = False):
+    """The cloud in ``path``: its points (and normals), or a mesh file's vertices (and
+    vertex normals). Refuses a missing, truncated or corrupt file and non-finite points
+    (``drop_nan``: drops those, with a warning), naming the file."""
     import open3d as o3d
 
-    if not path.is_file():
-        raise FileNotFoundError(f"no such file: {path}")
+    from o3d_spectral._files import check_cloud_file, check_finite
+
+    check_cloud_file(path)
     cloud = o3d.io.read_point_cloud(str(path))
     if len(cloud.points) == 0:  # a mesh file: use its vertices and normals
         mesh = o3d.io.read_triangle_mesh(str(path))
         if len(mesh.vertices) == 0:
             raise ValueError(f"{path}: Open3D read no points from it")
+        check_finite(np.asarray(mesh.vertices), path, what="vertices")
         mesh.compute_vertex_normals()
         cloud = o3d.geometry.PointCloud(mesh.vertices)
         cloud.normals = mesh.vertex_normals
+    arrays = [np.asarray(cloud.points)]
+    if cloud.has_normals():
+        arrays.append(np.asarray(cloud.normals))
+    what = "points (with their normals)" if len(arrays) == 2 else "points"
+    keep = check_finite(np.hstack(arrays), path, drop=drop_nan, what=what,
+                        hint="the file may be corrupt; --drop-nan drops them")
+    if keep is not None:
+        cloud = cloud.select_by_index(np.flatnonzero(keep).tolist())
+        if len(cloud.points) == 0:
+            raise ValueError(f"{path}: no point is left after dropping the non-finite ones")
     return cloud
 
 
+def _read_init(path: Path) -> np.ndarray:
+    """The 4x4 initial transformation in the text file ``path``."""
+    if not path.is_file():
+        raise FileNotFoundError(f"--init: no such file: {path}")
+    try:
+        init = np.loadtxt(path, dtype=np.float64, ndmin=2)
+    except ValueError as error:
+        raise ValueError(f"--init {path}: not a 4x4 matrix of numbers ({error})") from None
+    if init.shape != (4, 4) or not np.all(np.isfinite(init)):
+        raise ValueError(f"--init {path}: not a finite 4x4 matrix (shape {init.shape})")
+    return init
+
+
+def _viewpoint(text: str) -> str | tuple[float, ...] | None:
+    """``--target-viewpoint``: "auto", None ("none") or three coordinates."""
+    from o3d_spectral.cli import UsageError
+
+    if text in ("auto", "none"):
+        return None if text == "none" else text
+    try:
+        point = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        point = ()
+    if len(point) != 3:
+        raise UsageError(f"--target-viewpoint must be auto, none or X,Y,Z, got {text!r}")
+    return point
+
+
 def run(args: argparse.Namespace) -> int:
+    import open3d as o3d
+
     import o3d_spectral
 
-    source, target = _read_cloud(args.source), _read_cloud(args.target)
+    source = _read_cloud(args.source, drop_nan=args.drop_nan)
+    target = _read_cloud(args.target, drop_nan=args.drop_nan)
+    init = _read_init(args.init) if args.init else None
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
-    if args.init:
+    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
+                                     target_viewpoint=_viewpoint(args.target_viewpoint))
+    if init is not None:
         result = o3d_spectral.registration_spectral(
-            source, target, args.voxel_size, np.loadtxt(args.init), option, criteria
+            source, target, args.voxel_size, init, option, criteria, cloud=cloud
         )
     else:
         result = o3d_spectral.registration_spectral_global(
-            source, target, args.voxel_size, option, criteria
+            source, target, args.voxel_size, option, criteria, cloud=cloud
         )
+    if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
+        raise FloatingPointError("the registration produced a non-finite transformation")
     summary = {
         "transformation": result.transformation.tolist(),
         "fitness": result.fitness,
@@ -73,7 +140,12 @@ def run(args: argparse.Namespace) -> int:
         "converged": result.converged,
         "num_iterations": result.num_iterations,
         "run_time": result.run_time,
+        "confidence": result.confidence,
     }
+    if args.save:
+        moved = o3d.geometry.PointCloud(source).transform(result.transformation)
+        if not o3d.io.write_point_cloud(str(args.save), moved):
+            raise OSError(f"--save: Open3D could not write {args.save}")
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         print()

@@ -18,9 +18,16 @@ Several sessions may write one run folder at once (shards on several machines, a
 
 :func:`read_config` merges the sessions' files and :func:`load_results` their rows. Run
 folders written before sessions had their own files (``config.json`` and one
-``results.jsonl``) are read the same way, and resumed into the new layout. Files that are
-rewritten (a session's record, ``results.csv``) are written to a temporary file in the same
-folder and moved over the old one (``os.replace``), so a reader never sees half a file.
+``results.jsonl``) are read the same way, and resumed into the new layout. Where two files
+hold a row of the same (instance, method), the later file's row wins (files sort by the
+session's start). A row that failed for a reason in the input (an empty or corrupt instance
+file, recorded by versions that did not stop on it, :func:`input_failure`) is run again on
+resume, and the new row wins. A session or results file that is not what it should be (not
+JSON, a line that is not a row) is an error naming the file (and the line).
+
+Files that are rewritten (a session's record, ``results.csv``) are written to a temporary
+file in the same folder and moved over the old one (:func:`atomic_write_text`), so a reader
+never sees half a file.
 """
 
 from __future__ import annotations
@@ -34,11 +41,11 @@ import platform
 import secrets
 import socket
 import subprocess
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from o3d_spectral._files import atomic_write_text
 from o3d_spectral.harness._optional import require
 
 if TYPE_CHECKING:
@@ -56,6 +63,7 @@ __all__ = [
     "atomic_write_text",
     "commit",
     "done_keys",
+    "input_failure",
     "load_results",
     "machine",
     "new_session_id",
@@ -81,6 +89,13 @@ CURVE_COLUMNS = ("curve_rotation_deg", "curve_translation_m")
 KEY = ("suite", "index", "method")
 #: The settings every session of a run must share.
 SETTINGS = ("voxel_size", "seed", "criteria")
+#: Parts of the error of a row that failed because of its input, not of its method: an
+#: instance file that was missing or corrupt (read as an empty or garbage cloud).
+INPUT_ERRORS = (
+    "source is empty", "target is empty", "NaN or infinite", "no such file",
+    "missing instance file", "truncated or corrupt", "Open3D read no points",
+    "has no 'positions'",
+)
 #: Version of each package, by the key it has in a session's ``versions``.
 _PACKAGES = {
     "o3d_spectral": "o3d_spectral",
@@ -96,25 +111,40 @@ def suite_name(suite: Suite) -> str:
     return suite.root.resolve().name
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and
-    ``os.replace``: readers see the old file or the new one, never a part."""
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w") as sink:
-            sink.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(temporary)
-        raise
-
-
 def new_session_id() -> str:
-    """A name no other session has, sorting by start time: ``20260101T120000-host-pid-token``."""
-    now = datetime.datetime.now().strftime("%Y%m%dT%H%M%S")
+    """A name no other session has, sorting by start time:
+    ``20260101T120000123456-host-pid-token`` (microseconds, so a session started within
+    the same second as the one before still sorts after it)."""
+    now = datetime.datetime.now().strftime("%Y%m%dT%H%M%S%f")
     host = "".join(c if c.isalnum() else "-" for c in socket.gethostname())[:32]
     return f"{now}-{host}-{os.getpid()}-{secrets.token_hex(3)}"
+
+
+def _read_json(path: Path) -> object:
+    try:
+        return json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is not valid JSON ({error}); move it away") from None
+
+
+def _config_documents(out: Path) -> list[dict]:
+    """The run's settings documents: an older run's ``config.json``, then every session's
+    file, each with its ``sessions``; ``ValueError`` naming a file that is not one."""
+    documents = []
+    legacy = out / CONFIG_FILE
+    if legacy.is_file():
+        document = _read_json(legacy)
+        if not isinstance(document, dict) or not all(
+            isinstance(document.get(k), list) for k in ("suites", "methods", "sessions")
+        ):
+            raise ValueError(f"{legacy} is not a run's config (no suites, methods, sessions)")
+        documents.append(document)
+    for path in sorted((out / SESSIONS_DIR).glob("*.json")):
+        document = _read_json(path)
+        if not isinstance(document, dict) or not isinstance(document.get("session"), dict):
+            raise ValueError(f"{path} is not a session's file (no session record)")
+        documents.append(document | {"sessions": [document["session"]]})
+    return documents
 
 
 def read_config(out: str | Path) -> dict:
@@ -124,14 +154,7 @@ def read_config(out: str | Path) -> dict:
     Sessions are sorted by start; suites and methods are listed in the order sessions first
     named them.
     """
-    out = Path(out)
-    documents = []
-    legacy = out / CONFIG_FILE
-    if legacy.is_file():
-        documents.append(json.loads(legacy.read_text()))
-    for path in sorted((out / SESSIONS_DIR).glob("*.json")):
-        document = json.loads(path.read_text())
-        documents.append(document | {"sessions": [document["session"]]})
+    documents = _config_documents(Path(out))
     if not documents:
         return {}
     config = {key: documents[0].get(key) for key in SETTINGS}
@@ -192,8 +215,8 @@ def write_session(out: Path, entry: dict, record: dict) -> Path:
 
 
 def result_files(path: str | Path) -> list[Path]:
-    """The files holding a run's rows: an older run's ``results.jsonl``, then every
-    session's file by start (``path`` may also be one file)."""
+    """The files holding a run's rows, oldest first: an older run's ``results.jsonl``, then
+    every session's file by start (``path`` may also be one file)."""
     path = Path(path)
     if not path.is_dir():
         return [path] if path.is_file() else []
@@ -203,14 +226,35 @@ def result_files(path: str | Path) -> list[Path]:
 
 def _rows(file: Path) -> list[dict]:
     """The complete rows of a results file: a last line without its newline (a session
-    killed mid-write, or one still writing) is left out."""
+    killed mid-write, or one still writing) is left out; ``ValueError`` naming the file and
+    the line of one that is not a row."""
     text = file.read_text()
-    return [json.loads(line) for line in text[: text.rfind("\n") + 1].splitlines() if line]
+    rows = []
+    for number, line in enumerate(text[: text.rfind("\n") + 1].splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            row = None
+        if not isinstance(row, dict) or any(key not in row for key in KEY):
+            raise ValueError(f"{file}, line {number}: not a results row; remove that line")
+        rows.append(row)
+    return rows
+
+
+def input_failure(row: dict) -> bool:
+    """Whether ``row`` failed because of its input (:data:`INPUT_ERRORS`)."""
+    error = row.get("error")
+    return isinstance(error, str) and any(part in error for part in INPUT_ERRORS)
 
 
 def done_keys(out: Path) -> set[tuple]:
-    """Keys of the rows already in the run folder ``out``."""
-    return {tuple(row[k] for k in KEY) for file in result_files(out) for row in _rows(file)}
+    """Keys of the rows already in the run folder ``out``, but for those whose latest row
+    (over every session's file) failed because of its input (:func:`input_failure`): they
+    will be run again."""
+    latest = {tuple(row[k] for k in KEY): row for file in result_files(out) for row in _rows(file)}
+    return {key for key, row in latest.items() if not input_failure(row)}
 
 
 @contextlib.contextmanager

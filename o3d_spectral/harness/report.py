@@ -35,6 +35,21 @@ if TYPE_CHECKING:
 __all__ = ["make_report"]
 
 
+#: Columns of a successful registration's row (:func:`~o3d_spectral.harness.metrics.
+#: instance_metrics`) the tables and plots read; absent when every row failed.
+_METRIC_COLUMNS = (
+    "rotation_error_deg", "translation_error_m", "rotation_error_sym_deg",
+    "translation_error_sym_m", "squared_translation_error_m2", "squared_rotation_error_rad2",
+)
+
+
+def _with_metric_columns(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with the metric columns a run whose rows all failed lacks (as NaN), so its
+    tables show 0% success rather than fail."""
+    missing = [c for c in _METRIC_COLUMNS if c not in frame]
+    return frame.assign(**dict.fromkeys(missing, float("nan"))) if missing else frame
+
+
 def _run_config(results: Path) -> dict:
     return read_config(results if results.is_dir() else results.parent)
 
@@ -158,7 +173,7 @@ def make_report(
         Every file written, by name (e.g. ``"table1.tex"``).
     """
     results = Path(results)
-    frame = load_results(results)
+    frame = _with_metric_columns(load_results(results))
     config = _run_config(results)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -107,7 +107,9 @@ def _compact(values: Sequence[float]) -> list[float]:
 
 
 def _run_task(task: _Task) -> dict:
-    """Run one method on one instance (in a worker) and return its results row."""
+    """Run one method on one instance (in a worker) and return its results row. A missing
+    or corrupt instance file raises (naming it), which stops the eval: it is not the
+    method's failure."""
     instance = _suite(task.suite_dir)[task.index]
     method = get_method(task.method)
     start = time.perf_counter()
@@ -178,7 +180,7 @@ def _tasks(
             shard=selection.shard,
         )
         for index in indices:
-            condition = suite.manifest["instances"][index]["condition"]
+            condition = suite.manifest["instances"][index].get("condition", suite.condition)
             for method in methods:
                 if (name, index, method) in done or (method in tuned and in_tuning_split(index)):
                     continue

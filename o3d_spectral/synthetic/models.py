@@ -7,11 +7,11 @@ variable ``O3D_SPECTRAL_DATA`` to a folder of ``*.ply`` meshes to use another on
 
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
 import open3d as o3d
+
+from o3d_spectral._bundled import bundled_folder
 
 __all__ = ["objects_dir", "model_names", "model_path", "load_model"]
 
@@ -24,19 +24,9 @@ def objects_dir() -> Path:
     FileNotFoundError
         If no candidate folder holds ``*.ply`` files.
     """
-    candidates = []
-    if env := os.environ.get("O3D_SPECTRAL_DATA"):
-        candidates.append(Path(env))
-    candidates.append(Path(__file__).resolve().parents[2] / "datasets" / "objects")
-    candidates.append(Path(sys.prefix) / "share" / "o3d-spectral" / "objects")
-    for folder in candidates:
-        if folder.is_dir() and any(folder.glob("*.ply")):
-            return folder
-    raise FileNotFoundError(
-        "no bundled object models found; looked in "
-        + ", ".join(str(c) for c in candidates)
-        + ". Set O3D_SPECTRAL_DATA to a folder of .ply meshes."
-    )
+    return bundled_folder("objects", "O3D_SPECTRAL_DATA",
+                          lambda folder: folder.is_dir() and any(folder.glob("*.ply")),
+                          "object models")
 
 
 def model_names() -> list[str]:

@@ -18,7 +18,9 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
+from o3d_spectral._files import check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
+from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
@@ -177,7 +179,7 @@ def make_suite(
         "instances": entries,
     }
     path = out / MANIFEST
-    path.write_text(json.dumps(manifest, indent=1) + "\n")
+    atomic_write_text(path, json.dumps(manifest, indent=1) + "\n")
     return path
 
 
@@ -199,14 +201,16 @@ class Suite(Sequence[Instance]):
         path = self.root / MANIFEST
         if not path.is_file():
             raise FileNotFoundError(f"no {MANIFEST} in {self.root}; make one with make-suite")
-        self.manifest = json.loads(path.read_text())
-        if self.manifest.get("format") != FORMAT or self.manifest.get("version") != VERSION:
+        self.manifest = read_manifest(path)
+        if self.manifest["format"] != FORMAT or self.manifest["version"] != VERSION:
             raise ValueError(
                 f"{path} is not an {FORMAT} version {VERSION} manifest "
-                f"(format={self.manifest.get('format')!r}, "
-                f"version={self.manifest.get('version')!r})"
+                f"(format={self.manifest['format']!r}, version={self.manifest['version']!r})"
             )
-        self.options = _options_from_json(self.manifest["options"])
+        try:
+            self.options = _options_from_json(self.manifest["options"])
+        except (TypeError, ValueError, KeyError, AttributeError) as error:
+            raise ValueError(f"{path}: bad options ({type(error).__name__}: {error})") from None
 
     def __repr__(self) -> str:
         return (
@@ -223,15 +227,23 @@ class Suite(Sequence[Instance]):
         return len(self.manifest["instances"])
 
     def __getitem__(self, index: int) -> Instance:  # type: ignore[override]
+        """Instance ``index``, read from its files; ``FileNotFoundError`` or ``ValueError``
+        naming the file when one is missing, truncated or corrupt."""
         entry = self.manifest["instances"][index]
-        source = o3d.t.io.read_point_cloud(str(self.root / entry["source"]))
-        target = o3d.t.io.read_point_cloud(str(self.root / entry["target"]))
+        source = _read_instance_cloud(self.root, entry["source"])
+        target = _read_instance_cloud(self.root, entry["target"])
+        if "object_id" not in target.point:
+            raise ValueError(f"{self.root / entry['target']}: no object_id per point; "
+                             "make the suite again")
+        labels = target.point.object_id.numpy().ravel().astype(np.int64)
+        if len(labels) != len(target.point.positions):
+            raise ValueError(f"{self.root / entry['target']}: object_id does not match points")
         skip = {"index", "source", "target", "T_gt", "source_from_model"}
         return Instance(
             source=source.to_legacy(),
             target=target.to_legacy(),
             T_gt=np.array(entry["T_gt"]),
-            target_labels=target.point.object_id.numpy().ravel().astype(np.int64),
+            target_labels=labels,
             source_from_model=np.array(entry["source_from_model"]),
             metadata={k: v for k, v in entry.items() if k not in skip},
         )
@@ -239,6 +251,20 @@ class Suite(Sequence[Instance]):
     def __iter__(self) -> Iterator[Instance]:
         for index in range(len(self)):
             yield self[index]
+
+
+def _read_instance_cloud(root: Path, name: str) -> o3d.t.geometry.PointCloud:
+    """One instance file, checked: inside ``root``, complete, with finite points and
+    normals (``FileNotFoundError`` or ``ValueError`` naming it otherwise)."""
+    path = check_cloud_file(instance_path(root, name))
+    cloud = o3d.t.io.read_point_cloud(str(path))
+    if "positions" not in cloud.point or len(cloud.point.positions) == 0:
+        raise ValueError(f"{path}: Open3D read no points from it; make the suite again")
+    if "normals" not in cloud.point:
+        raise ValueError(f"{path}: no normals; make the suite again")
+    arrays = np.hstack([cloud.point.positions.numpy(), cloud.point.normals.numpy()])
+    check_finite(arrays, path, what="points (with their normals)")
+    return cloud
 
 
 def load_suite(directory: str | Path) -> Suite:

@@ -1,0 +1,244 @@
+"""Benchmark: the global spectral call against FPFH-RANSAC, time and success (issue 17).
+
+Both methods run on the same instances in the same run, one thread each, and each call is
+timed once with ``time.perf_counter`` around the call only (loading, rotating and scoring
+are outside): one untimed call of each method on the first instance warms up FFT plans and
+caches first.
+
+* spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults.
+* FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial: FPFH + RANSAC, then
+  point-to-plane ICP on the full clouds, seeded as the harness seeds it). Its ICP needs
+  target normals: when the target has none (the real cases), they are estimated *inside
+  the timed call* with ``estimate_normals(KDTreeSearchParamHybrid(2 * voxel, 30))`` on a
+  copy, so both methods start from the same normal-free input.
+
+Groups and voxel sizes:
+
+* suites (``--suites DIR`` holding ``full``, ``partial``, ``occluded``, ``cluttered``, made by
+  ``o3d-spectral make-suite COND --n 48 --seed 0 --out DIR/COND``): the first 48 instances
+  of each, 8 mm; success symmetry-aware, 5 deg and 1 cm at the source centroid
+  (``harness.metrics.instance_metrics``).
+* real cases (``o3d_spectral.harness.real``; ``dragon_24``, ``dragon_48``, ``dragon_72``:
+  5 mm, the dragon is 0.2 m across; ``ycbv_crop``, ``ycbv_frame``: 8 mm, as the suites' YCB
+  objects): every case from ``--rotations`` seeded random rotations of its source (uniform
+  over SO(3) about its centroid); success: plain rotation error < 5 deg and translation
+  error at the source centroid < 1 cm (``harness.errors``; no symmetry groups are known
+  for the YCB-Video model clouds).
+
+Reports per group: n, median and p90 time of each method (over the instances), the ratios
+spectral / FPFH of the medians and of the p90s, and each method's success rate. Prints a
+Markdown table and writes ``instances.csv``, ``summary.csv`` and ``summary.md`` to ``--out``.
+
+Usage: python eval/bench_speed.py --suites out/suites --out out/bench_speed
+       [--rotations 5] [--groups full dragon_24 ...] [--limit 3]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one thread for both methods
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+import zlib  # noqa: E402
+from collections.abc import Iterator  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import open3d as o3d  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+import o3d_spectral  # noqa: E402
+from o3d_spectral.harness import real  # noqa: E402
+from o3d_spectral.harness.errors import rotation_error, translation_error  # noqa: E402
+from o3d_spectral.harness.methods import get_method  # noqa: E402
+from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
+from o3d_spectral.harness.runner import task_seed  # noqa: E402
+from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
+
+o3d.utility.set_max_threads(1)  # Open3D's TBB pool has no environment variable
+
+CONDITIONS = ("full", "partial", "occluded", "cluttered")
+SUITE_VOXEL = 0.008
+REAL_VOXEL = {"dragon_24": 0.005, "dragon_48": 0.005, "dragon_72": 0.005,
+              "ycbv_crop": 0.008, "ycbv_frame": 0.008}
+METHODS = ("spectral_global", "fpfh_ransac")
+SUITE_SIZE = 48
+MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
+
+
+@dataclass
+class Task:
+    """One timed problem: clouds, voxel, seed, and how to score an estimate."""
+
+    group: str
+    name: str
+    source: o3d.geometry.PointCloud
+    target: o3d.geometry.PointCloud
+    voxel: float
+    seed: int
+    score: object  # (T) -> (rotation_error_deg, translation_error_m, success)
+
+
+def spectral_global(task: Task) -> np.ndarray:
+    result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel)
+    return np.asarray(result.transformation)
+
+
+def fpfh_ransac(task: Task) -> np.ndarray:
+    target = task.target
+    if not target.has_normals():  # the tutorial's ICP needs them; counted in the time
+        target = o3d.geometry.PointCloud(target)
+        target.estimate_normals(
+            o3d.geometry.KDTreeSearchParamHybrid(radius=2.0 * task.voxel, max_nn=30)
+        )
+    transformation, _ = get_method("fpfh_ransac")(task.source, target, task.voxel, task.seed)
+    return transformation
+
+
+CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}
+
+
+def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
+    suite = load_suite(root / condition)
+    for index in range(min(SUITE_SIZE, limit, len(suite))):
+        instance = suite[index]
+
+        def score(T, instance=instance):
+            m = instance_metrics(T, instance)
+            return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
+
+        seed = task_seed(0, condition, int(suite.manifest["seed"]), index, "fpfh_ransac")
+        yield Task(condition, f"{condition}_{index:03d}", instance.source, instance.target,
+                   SUITE_VOXEL, seed, score)
+
+
+def real_tasks(group: str, rotations: int, limit: int) -> Iterator[Task]:
+    count = 0
+    for case in real.load_cases([group]):
+        for r in range(rotations):
+            if count >= limit:
+                return
+            count += 1
+            seed = zlib.crc32(f"{case.name}/{r}".encode()) & 0x7FFFFFFF
+            turned, _ = real.randomly_rotated(case, seed)
+            centre = np.asarray(turned.source.points).mean(axis=0)
+
+            def score(T, T_gt=turned.T_gt, centre=centre):
+                rot = rotation_error(T, T_gt)
+                tra = translation_error(T, T_gt, center=centre)
+                return rot, tra, bool(rot < MAX_ROTATION_DEG and tra < MAX_TRANSLATION_M)
+
+            yield Task(group, f"{case.name}_r{r}", turned.source, turned.target,
+                       REAL_VOXEL[group], seed, score)
+
+
+def run_task(task: Task) -> list[dict]:
+    rows = []
+    for method in METHODS:
+        start = time.perf_counter()
+        T = CALLS[method](task)
+        seconds = time.perf_counter() - start
+        rot, tra, success = task.score(T)
+        rows.append({
+            "group": task.group, "instance": task.name, "method": method,
+            "voxel_m": task.voxel, "source_points": len(task.source.points),
+            "target_points": len(task.target.points), "seconds": seconds,
+            "rotation_error_deg": rot, "translation_error_m": tra, "success": bool(success),
+        })
+    return rows
+
+
+def summarise(rows: list[dict], groups: list[str]) -> list[dict]:
+    out = []
+    for group in groups:
+        picked = {m: [r for r in rows if r["group"] == group and r["method"] == m]
+                  for m in METHODS}
+        if not picked[METHODS[0]]:
+            continue
+        line = {"group": group, "n": len(picked[METHODS[0]])}
+        for m in METHODS:
+            t = np.array([r["seconds"] for r in picked[m]])
+            line[f"{m}_median_s"] = float(np.median(t))
+            line[f"{m}_p90_s"] = float(np.percentile(t, 90))
+            line[f"{m}_success"] = float(np.mean([r["success"] for r in picked[m]]))
+        a, b = METHODS
+        line["ratio_median"] = line[f"{a}_median_s"] / line[f"{b}_median_s"]
+        line["ratio_p90"] = line[f"{a}_p90_s"] / line[f"{b}_p90_s"]
+        out.append(line)
+    return out
+
+
+def markdown(summary: list[dict]) -> str:
+    head = ("| group | n | spectral median s | spectral p90 s | FPFH median s | FPFH p90 s "
+            "| ratio median | ratio p90 | spectral success | FPFH success |")
+    lines = [head, "|" + " --- |" * 10]
+    for s in summary:
+        lines.append(
+            f"| {s['group']} | {s['n']} | {s['spectral_global_median_s']:.3f} "
+            f"| {s['spectral_global_p90_s']:.3f} | {s['fpfh_ransac_median_s']:.3f} "
+            f"| {s['fpfh_ransac_p90_s']:.3f} | {s['ratio_median']:.2f} | {s['ratio_p90']:.2f} "
+            f"| {100 * s['spectral_global_success']:.0f}% | {100 * s['fpfh_ransac_success']:.0f}% |"
+        )
+    return "\n".join(lines)
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    if not rows:
+        return
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
+    parser.add_argument("--out", type=Path, default=Path("out/bench_speed"))
+    parser.add_argument("--rotations", type=int, default=5, help="random rotations per real case")
+    parser.add_argument("--groups", nargs="+", choices=CONDITIONS + real.GROUPS,
+                        default=list(CONDITIONS + real.GROUPS))
+    parser.add_argument("--limit", type=int, default=10**9,
+                        help="at most this many instances per group (a quick run)")
+    args = parser.parse_args()
+    groups = [g for g in CONDITIONS + real.GROUPS if g in args.groups]
+    if args.suites is None:
+        groups = [g for g in groups if g not in CONDITIONS]
+
+    tasks: list[Task] = []
+    for group in groups:
+        if group in CONDITIONS:
+            tasks += suite_tasks(args.suites, group, args.limit)
+        else:
+            tasks += real_tasks(group, args.rotations, args.limit)
+    if not tasks:
+        parser.error("no instances: give --suites or real groups")
+    for method in METHODS:  # warm-up, untimed: FFT plans, caches, lazy imports
+        CALLS[method](tasks[0])
+
+    rows: list[dict] = []
+    for task in tqdm(tasks, desc="bench_speed", unit="inst"):
+        rows += run_task(task)
+
+    summary = summarise(rows, groups)
+    table = markdown(summary)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_csv(args.out / "instances.csv", rows)
+    write_csv(args.out / "summary.csv", summary)
+    note = (f"{platform.processor() or platform.machine()}, Open3D {o3d.__version__}, one thread "
+            f"(Open3D max threads {o3d.utility.get_max_threads()}); each instance timed once; "
+            "ratio = spectral / FPFH-RANSAC")
+    (args.out / "summary.md").write_text(table + "\n\n" + note + "\n")
+    print(table)
+    print(note)
+    print(f"wrote {args.out / 'instances.csv'}, summary.csv, summary.md")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,69 @@
+"""Clouds far from the origin are registered in a frame centred on the target.
+
+Georeferenced clouds (UTM coordinates, hundreds of kilometres from the origin) make the
+ICP polish's normal equations ill-conditioned and waste the precision of every
+coordinate. The calls move both clouds by minus the target's centroid when it lies over
+``CENTRE_DISTANCE`` from the origin, register them there, and express every result in the
+caller's frame again. Nearer clouds are registered as given (the origin of a scan in its
+sensor's frame means something: the sensor).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .cloud import CloudArrays
+from .law import IterationRecord
+from .options import CloudOption
+
+__all__ = ["CENTRE_DISTANCE", "offset", "shifted", "centred_arrays", "centred_option",
+           "uncentred_history"]
+
+#: Targets whose centroid lies farther than this from the origin (metres) are centred.
+CENTRE_DISTANCE = 100.0
+
+
+def offset(target: CloudArrays) -> NDArray[np.float64] | None:
+    """The target's centroid when over ``CENTRE_DISTANCE`` from the origin, else None."""
+    centroid = target.points.mean(axis=0)
+    return centroid if np.linalg.norm(centroid) > CENTRE_DISTANCE else None
+
+
+def shifted(transformation: NDArray[np.float64], c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The rigid motion ``transformation`` (4, 4) in coordinates ``x - c`` (metres);
+    ``shifted(M, -c)`` undoes ``shifted(M, c)``."""
+    out = np.array(transformation, dtype=np.float64)
+    out[:3, 3] += out[:3, :3] @ c - c
+    return out
+
+
+def centred_arrays(arrays: CloudArrays, c: NDArray[np.float64]) -> CloudArrays:
+    """``arrays`` with its points moved by ``-c`` (normals unchanged)."""
+    return CloudArrays(arrays.points - c, arrays.normals)
+
+
+def centred_option(cloud: CloudOption, c: NDArray[np.float64]) -> CloudOption:
+    """``cloud`` with its sensor positions moved by ``-c`` ("auto" stays "auto": the
+    stepper is told where the caller's origin went)."""
+    changes = {}
+    if cloud.camera_location is not None:
+        changes["camera_location"] = tuple(np.asarray(cloud.camera_location) - c)
+    if cloud.target_viewpoint is not None and not isinstance(cloud.target_viewpoint, str):
+        changes["target_viewpoint"] = tuple(np.asarray(cloud.target_viewpoint) - c)
+    return dataclasses.replace(cloud, **changes)
+
+
+def uncentred_history(
+    history: list[IterationRecord], c: NDArray[np.float64]
+) -> list[IterationRecord]:
+    """The records of a registration made in coordinates ``x - c``, in the caller's frame
+    (the law's rotation and translation about the centroid do not change)."""
+    return [
+        dataclasses.replace(
+            record, transformation=shifted(record.transformation, -c), centre=record.centre + c
+        )
+        for record in history
+    ]

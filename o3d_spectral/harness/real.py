@@ -1,0 +1,195 @@
+"""Registration cases on real sensor data (``datasets/real``; see its ``README.md``).
+
+Two sets, each with a verified ground truth:
+
+* the Stanford dragon (Cyberware laser scans on a turntable, 24 degrees apart): scan to
+  scan, in groups ``"dragon_24"``, ``"dragon_48"``, ``"dragon_72"`` (every pair of scans
+  that far apart, source the earlier scan);
+* one YCB-Video RGB-D frame (Asus Xtion): the YCB-Video model points of three objects
+  against the object's crop by the label mask (``"ycbv_crop"``) or against the whole
+  frame (``"ycbv_frame"``, down-sampled to 2 mm), both in the camera frame.
+
+Clouds are legacy ``open3d.geometry.PointCloud`` in metres, float64, **without normals**
+(as a user gets them from a scanner). ``T_gt`` maps source onto target
+(``target ~ T_gt @ source``). :func:`randomly_rotated` turns a case's source by a seeded
+rotation uniform over SO(3) and returns the matching ground truth.
+
+The folder is the repository's ``datasets/real`` or, installed, ``<prefix>/share/
+o3d-spectral/real``; the environment variable ``O3D_SPECTRAL_REAL_DATA`` names another.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial.transform import Rotation
+
+from o3d_spectral._bundled import bundled_folder
+
+__all__ = [
+    "DRAGON_ANGLES",
+    "GROUPS",
+    "YCBV_CLASSES",
+    "RealCase",
+    "dragon_pose",
+    "load_cases",
+    "randomly_rotated",
+    "real_dir",
+]
+
+#: Turntable angles (degrees) of the bundled dragon scans.
+DRAGON_ANGLES: tuple[int, ...] = tuple(range(0, 169, 24))
+#: The YCB-Video classes in the bundled frame.
+YCBV_CLASSES: tuple[str, ...] = ("009_gelatin_box", "025_mug", "061_foam_brick")
+#: The groups of cases, in order.
+GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "ycbv_crop", "ycbv_frame")
+_FRAME = "0000_000001"
+_MARKER = Path("dragon") / "dragonStandRight.conf"
+
+
+class RealCase(NamedTuple):
+    """One registration problem on real data.
+
+    Attributes
+    ----------
+    name : str
+        E.g. ``"dragon_0_24"`` (source scan, target scan) or ``"ycbv_crop_025_mug"``.
+    group : str
+        One of :data:`GROUPS`.
+    source, target : open3d.geometry.PointCloud
+        Metres, no normals; new copies on every load.
+    T_gt : ndarray, shape (4, 4), float64
+        Ground truth, ``target ~ T_gt @ source``.
+    """
+
+    name: str
+    group: str
+    source: o3d.geometry.PointCloud
+    target: o3d.geometry.PointCloud
+    T_gt: np.ndarray
+
+
+def real_dir() -> Path:
+    """Folder holding the bundled real data (``dragon/``, ``ycbv/``).
+
+    Raises
+    ------
+    FileNotFoundError
+        If no candidate folder holds ``dragon/dragonStandRight.conf``.
+    """
+    return bundled_folder("real", "O3D_SPECTRAL_REAL_DATA",
+                          lambda folder: (folder / _MARKER).is_file(), "real data")
+
+
+@cache
+def _points(relative: str) -> np.ndarray:
+    """The points of a bundled PLY (float64, metres), read once per process (read-only)."""
+    path = real_dir() / relative
+    cloud = o3d.io.read_point_cloud(str(path))
+    if cloud.is_empty():
+        raise ValueError(f"no points read from {path}")
+    points = np.asarray(cloud.points, dtype=np.float64).copy()
+    points.flags.writeable = False
+    return points
+
+
+def _cloud(relative: str) -> o3d.geometry.PointCloud:
+    return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(_points(relative).copy()))
+
+
+def dragon_pose(angle: int) -> np.ndarray:
+    """The pose ``W`` (4x4) of the dragon scan at ``angle`` degrees: ``p_world = W p``.
+
+    From the line ``bmesh dragonStandRight_<angle>.ply tx ty tz qi qj qk qr`` of
+    ``dragonStandRight.conf``: ``W = [R^T | t]`` with ``R`` the quaternion's matrix
+    (the conjugate: ``R p + t`` is wrong and leaves about 2% overlap).
+    """
+    wanted = f"dragonStandRight_{angle}.ply"
+    for line in (real_dir() / _MARKER).read_text().splitlines():
+        fields = line.split()
+        if len(fields) == 9 and fields[0] == "bmesh" and fields[1] == wanted:
+            t, q = np.array(fields[2:5], dtype=float), np.array(fields[5:9], dtype=float)
+            pose = np.eye(4)
+            pose[:3, :3] = Rotation.from_quat(q).as_matrix().T
+            pose[:3, 3] = t
+            return pose
+    raise ValueError(f"no dragon scan at {angle} degrees; bundled: {DRAGON_ANGLES}")
+
+
+def _dragon_cases(step: int) -> list[RealCase]:
+    cases = []
+    for a in DRAGON_ANGLES:
+        b = a + step
+        if b not in DRAGON_ANGLES:
+            continue
+        T_gt = np.linalg.inv(dragon_pose(b)) @ dragon_pose(a)  # A -> B = inv(W_B) W_A
+        cases.append(RealCase(
+            f"dragon_{a}_{b}", f"dragon_{step}", _cloud(f"dragon/dragonStandRight_{a}.ply"),
+            _cloud(f"dragon/dragonStandRight_{b}.ply"), T_gt,
+        ))
+    return cases
+
+
+def _ycbv_cases(group: str) -> list[RealCase]:
+    cases = []
+    for name in YCBV_CLASSES:
+        target = f"ycbv/{_FRAME}/" + (
+            f"{name}_crop.ply" if group == "ycbv_crop" else "scene_2mm.ply"
+        )
+        T_gt = np.loadtxt(real_dir() / "ycbv" / _FRAME / f"{name}_T_cam_from_model.txt")
+        cases.append(RealCase(
+            f"{group}_{name}", group, _cloud(f"ycbv/models/{name}.ply"), _cloud(target),
+            T_gt.reshape(4, 4),
+        ))
+    return cases
+
+
+def load_cases(groups: tuple[str, ...] | list[str] | None = None) -> list[RealCase]:
+    """The real registration cases of ``groups`` (all of :data:`GROUPS` when None), in the
+    order of :data:`GROUPS`: 7, 6 and 5 dragon pairs, 3 crops, 3 whole-frame cases.
+
+    Raises
+    ------
+    ValueError
+        If a group is unknown.
+    """
+    chosen = GROUPS if groups is None else tuple(groups)
+    unknown = [g for g in chosen if g not in GROUPS]
+    if unknown:
+        raise ValueError(f"unknown groups {unknown}; choose from {', '.join(GROUPS)}")
+    cases: list[RealCase] = []
+    for group in GROUPS:
+        if group in chosen:
+            cases += (
+                _dragon_cases(int(group.split("_")[1])) if group.startswith("dragon")
+                else _ycbv_cases(group)
+            )
+    return cases
+
+
+def randomly_rotated(case: RealCase, seed: int) -> tuple[RealCase, np.ndarray]:
+    """The case with its source turned about its centroid by a random rotation.
+
+    The rotation is uniform over SO(3) (Haar), drawn from ``numpy.random.default_rng(seed)``;
+    the same seed gives the same cloud. The target is unchanged (a new copy).
+
+    Returns
+    -------
+    case : RealCase
+        Same name and group; ``source`` moved by ``M``; ``T_gt`` becomes ``T_gt @ inv(M)``.
+    M : ndarray, shape (4, 4), float64
+        The motion applied to the source: ``x -> R (x - c) + c``, ``c`` its centroid.
+    """
+    rng = np.random.default_rng(seed)
+    rotation = Rotation.random(random_state=rng).as_matrix()
+    points = np.asarray(case.source.points)
+    centre = points.mean(axis=0)
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = rotation, centre - rotation @ centre
+    source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points @ rotation.T + M[:3, 3]))
+    target = o3d.geometry.PointCloud(case.target)
+    return case._replace(source=source, target=target, T_gt=case.T_gt @ np.linalg.inv(M)), M
