@@ -301,7 +301,7 @@ class SpectralStepper:
         matches the fixed one (searched near ``around``, metres, when given): its centroid
         there (metres), the phase-correlation peak height and ``J_t`` before the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
-        placed = self.grid.place(moved, moving.radius, moving.centroid, around)
+        placed = self.grid.correlate(moved, moving.radius, moving.centroid, around)
         return moving.centroid + placed.shift, placed.peak, placed.cost
 
     def rotation_grid(
@@ -355,7 +355,7 @@ class SpectralStepper:
         if toward is not None:
             # A sensor samples a surface in proportion to its projected area: cos(incidence).
             raw_egi = self._visible_egi(moving, toward, cosine[toward])
-        placed = self.grid.place(moved, moving.radius, moving.centroid + T, around)
+        placed = self.grid.correlate(moved, moving.radius, moving.centroid + T, around)
         # Rotation: gradient of the EGI correlation, scaled to an angle.
         F, G = self._smooth(raw_egi, level), self.target_coefficients[level]
         local = gradient(F, G, R)

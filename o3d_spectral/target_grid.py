@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,8 +25,6 @@ __all__ = ["Placement", "TargetGrid"]
 
 #: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
 CACHED_SPECTRA = 8
-#: :meth:`TargetGrid.place` searches a scene on a grid this many times coarser first.
-COARSENING = 2
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
 #: does not need more.
 PRECISION = "single"
@@ -78,7 +75,6 @@ class TargetGrid:
         self.voxel_size = voxel_size
         self.weighting, self.peak_width = weighting, peak_width
         self.window, self.max_memory = window, max_memory
-        self._points = points
         lower, upper = points.min(axis=0), points.max(axis=0)
         self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, voxel_size)
         self.box = self.lattice.box_around(lower, upper, margin=2)
@@ -121,25 +117,6 @@ class TargetGrid:
         whole = np.prod(self.fft_shape(self.box, moving), dtype=np.float64)
         windowed = np.prod(self.fft_shape(window, moving), dtype=np.float64)
         return window if windowed < 0.5 * whole else self.box
-
-    @cached_property
-    def coarse(self) -> TargetGrid:
-        """The same points on voxels ``COARSENING`` times larger (built on first use)."""
-        return TargetGrid(
-            self._points, COARSENING * self.voxel_size, weighting=self.weighting,
-            peak_width=self.peak_width, window=self.window, max_memory=self.max_memory,
-        )
-
-    def place(
-        self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
-        around: ArrayLike | None = None,
-    ) -> Placement:
-        """:meth:`correlate`; but searching the whole of a grid much larger than the
-        moving cloud (a scene), first on the :attr:`coarse` grid (``COARSENING**3`` times
-        fewer voxels), then at full resolution in a window about where that put it."""
-        if around is None and self.search_box(radius, centre) is not self.box:
-            around = centre + self.coarse.correlate(moved, radius, centre).shift
-        return self.correlate(moved, radius, centre, around)
 
     def correlate(
         self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
