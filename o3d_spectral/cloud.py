@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 
 __all__ = [
     "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
-    "MIN_POINTS",
+    "MIN_POINTS", "extent", "dense_bounds",
 ]
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
@@ -148,6 +148,13 @@ def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> 
     spread = np.maximum.reduceat(depth[order], starts) - np.minimum.reduceat(depth[order], starts)
     shared = np.diff(np.r_[starts, len(order)]) >= 2
     return bool(shared.any() and np.mean(spread[shared] > 3.0 * voxel_size) < 0.1)
+
+
+def extent(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Centroid (metres, shape (3,)) of ``points`` (N, 3) and the largest distance of a
+    point from it (metres): the ball that holds the cloud under any rotation about it."""
+    centroid = points.mean(axis=0)
+    return centroid, float(np.max(np.linalg.norm(points - centroid, axis=1)))
 
 
 def dense_bounds(

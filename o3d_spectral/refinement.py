@@ -13,6 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
+from .cloud import extent
 from .options import RefinementOption
 
 __all__ = [
@@ -40,8 +41,8 @@ def near_pose(
     points in this crop as in the whole target, and a KD-tree of a scene's neighbourhood
     of the object is much cheaper to build than one of the whole scene.
     """
-    centroid = source_points.mean(axis=0)
-    reach = float(np.max(np.linalg.norm(source_points - centroid, axis=1))) + margin
+    centroid, reach = extent(source_points)
+    reach += margin
     centre = transformation[:3, :3] @ centroid + transformation[:3, 3]
     points = np.asarray(target.points)
     keep = np.flatnonzero(np.sum((points - centre) ** 2, axis=1) <= reach * reach)

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import centring
 from ._checks import check_instance, check_number, check_transformation
-from .cloud import CloudArrays, as_arrays, to_legacy
+from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .law import Climb, IterationRecord, climb
 from .options import (
     CloudOption,
@@ -195,10 +195,8 @@ def _refined(
     """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
     of a scene within the source's size of it (the polish moves the source far less)."""
     fixed = _with_normals(target, run.stepper)
-    points = run.source.points
-    reach = float(np.max(np.linalg.norm(points - points.mean(axis=0), axis=1)))
-    margin = max(reach, REFINEMENT_MARGIN * run.stepper.voxel_size)
-    near, kept = near_pose(fixed, points, transformation, margin)
+    margin = max(extent(run.source.points)[1], REFINEMENT_MARGIN * run.stepper.voxel_size)
+    near, kept = near_pose(fixed, run.source.points, transformation, margin)
     if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
         return transformation
     return refine(source, near, run.stepper.voxel_size, transformation, refinement)

@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 
 from . import so3
 from ._checks import check_instance
-from .cloud import MIN_POINTS, PreparedCloud, as_arrays, prepare
+from .cloud import MIN_POINTS, PreparedCloud, as_arrays, extent, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
 from .options import CloudOption, SpectralRegistrationOption
@@ -247,8 +247,7 @@ class SpectralStepper:
             M = np.asarray(transformation, dtype=np.float64)
             points = points @ M[:3, :3].T + M[:3, 3]
             point_normals, normals = point_normals @ M[:3, :3].T, normals @ M[:3, :3].T
-        centroid = points.mean(axis=0)
-        radius = float(np.max(np.linalg.norm(points - centroid, axis=1)))
+        centroid, radius = extent(points)
         B = self.option.bandwidth
         table = None
         fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
