@@ -14,6 +14,15 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
 
 
+def full_suite(tmp_path_factory: pytest.TempPathFactory, n: int):
+    """A seed-0 ``full`` suite of ``n`` instances in a fresh temporary folder."""
+    from o3d_spectral.synthetic.suite import make_suite
+
+    out = tmp_path_factory.mktemp("suites") / "full"
+    make_suite("full", n, 0, out, progress=False)
+    return out
+
+
 def sample_model(name: str, n: int = 20000, seed: int = 0) -> o3d.geometry.PointCloud:
     """Points sampled uniformly on a bundled mesh, with outward triangle normals."""
     o3d.utility.random.seed(seed)

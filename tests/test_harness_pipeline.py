@@ -10,15 +10,14 @@ from o3d_spectral.cli import main
 from o3d_spectral.harness import load_results, method_names, method_settings, run_eval
 from o3d_spectral.harness.records import TABLE_FILE, read_config, result_files
 from o3d_spectral.synthetic.suite import make_suite
+from tests.conftest import full_suite
 
 VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
 
 
 @pytest.fixture(scope="module")
 def suite_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("suites") / "full"
-    make_suite("full", 2, 0, out, progress=False)
-    return out
+    return full_suite(tmp_path_factory, 2)
 
 
 @pytest.fixture(scope="module")

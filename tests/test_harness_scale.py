@@ -25,7 +25,7 @@ from o3d_spectral.harness.records import (  # noqa: E402
     result_files,
 )
 from o3d_spectral.harness.selection import in_shard, parse_shard, selected_indices  # noqa: E402
-from o3d_spectral.synthetic.suite import make_suite  # noqa: E402
+from tests.conftest import full_suite  # noqa: E402
 
 METHODS = ["icp_point_to_plane", "fpfh_ransac"]
 VOLATILE = ["time_s"]  # the only column allowed to differ between identical runs
@@ -33,9 +33,7 @@ VOLATILE = ["time_s"]  # the only column allowed to differ between identical run
 
 @pytest.fixture(scope="module")
 def suite_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("suites") / "full"
-    make_suite("full", 4, 0, out, progress=False)
-    return out
+    return full_suite(tmp_path_factory, 4)
 
 
 @pytest.fixture(scope="module")
