@@ -7,15 +7,16 @@ caller's cloud is never modified) and :func:`prepare`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
+
+from .normals import SIGN_DISAGREEMENT, orient, sign_disagreement, view_direction
 
 __all__ = [
-    "CloudArrays", "PreparedCloud", "as_arrays", "to_legacy", "prepare", "is_depth_map",
+    "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
     "MIN_POINTS", "extent", "dense_bounds",
 ]
 
@@ -25,8 +26,6 @@ MIN_POINTS = 10
 #: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
 ISOLATED_GAP = 10.0
 ISOLATED_SHARE = 0.01
-#: Normals are oriented along the surface over at most this many points (:func:`_orient`).
-PROPAGATED_POINTS = 5000
 
 logger = logging.getLogger(__name__)
 
@@ -117,39 +116,6 @@ def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
     return cloud
 
 
-def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> bool:
-    """Whether ``points`` look like one depth image taken from ``viewpoint``.
-
-    A sensor sees one surface per ray; a model (or a fusion of views) has surfaces behind
-    surfaces. Rays are binned half a voxel wide at the cloud's median distance; the cloud
-    is a depth map when fewer than 10% of the bins holding two points or more hold depths
-    more than 3 voxels apart.
-
-    Parameters
-    ----------
-    points : array_like, shape (N, 3)
-        Metres.
-    viewpoint : array_like, shape (3,)
-        Metres.
-    voxel_size : float
-        Metres.
-    """
-    rays = np.asarray(points, dtype=np.float64) - np.asarray(viewpoint, dtype=np.float64)
-    depth = np.linalg.norm(rays, axis=1)
-    rays, depth = rays[depth > 0], depth[depth > 0]
-    step = 0.5 * voxel_size / np.median(depth)  # bin width, radians
-    theta = np.arccos(np.clip(rays[:, 2] / depth, -1.0, 1.0))
-    phi = np.arctan2(rays[:, 1], rays[:, 0]) + np.pi
-    row = np.floor(theta / step).astype(np.int64)
-    per_row = np.maximum(np.floor(2 * np.pi * np.sin((row + 0.5) * step) / step), 1.0)
-    key = row * (2 * int(np.ceil(2 * np.pi / step)) + 2) + np.floor(phi / (2 * np.pi) * per_row)
-    order = np.argsort(key, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(key[order]) != 0])
-    spread = np.maximum.reduceat(depth[order], starts) - np.minimum.reduceat(depth[order], starts)
-    shared = np.diff(np.r_[starts, len(order)]) >= 2
-    return bool(shared.any() and np.mean(spread[shared] > 3.0 * voxel_size) < 0.1)
-
-
 def extent(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     """Centroid (metres, shape (3,)) of ``points`` (N, 3) and the largest distance of a
     point from it (metres): the ball that holds the cloud under any rotation about it."""
@@ -208,50 +174,40 @@ def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> Clou
     return CloudArrays(arrays.points[keep], normals)
 
 
-def _orient(
-    cloud: o3d.geometry.PointCloud, camera_location: ArrayLike | None, voxel_size: float,
-    origin: NDArray[np.float64],
-) -> None:
-    """Orient estimated normals in place (on our own copy); ``origin``: where the
-    caller's frame has its origin (metres)."""
-    points = np.asarray(cloud.points)
-    outside = np.any(points.min(axis=0) > origin) or np.any(points.max(axis=0) < origin)
-    if camera_location is None and outside and is_depth_map(points, origin, voxel_size):
-        camera_location = origin  # a scan in its sensor's frame
-    if camera_location is not None:
-        cloud.orient_normals_towards_camera_location(np.asarray(camera_location, dtype=float))
-        return
-    # A model: propagate one orientation along the surface, then point it outward.
-    normals = _propagated(cloud)
-    if np.sum(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
-        normals = -normals
-    cloud.normals = o3d.utility.Vector3dVector(normals)
+@dataclass(frozen=True)
+class CloudReading:
+    """How :func:`prepare` read a cloud (reported in the registration result).
 
-
-def _propagated(cloud: o3d.geometry.PointCloud) -> NDArray[np.float64]:
-    """The cloud's normals turned to one consistent orientation along the surface.
-
-    The orientation is propagated (Open3D's minimum spanning tree over tangent planes,
-    whose cost grows fast with the number of points) over every k-th point, at most
-    ``PROPAGATED_POINTS``, with their own normals, centred at the origin; then each
-    normal takes the sign of the nearest propagated one. A plane (no spread across it)
-    takes one side of it.
+    Attributes
+    ----------
+    normals_from : {"given", "re-oriented", "estimated"}
+        The caller's normals, as given or with their signs chosen again (neighbours
+        disagreed, :func:`o3d_spectral.normals.sign_disagreement`), or estimated.
+    orientation : {"camera", "sensor frame", "surface"} or None
+        The rule that chose their signs (:func:`o3d_spectral.normals.orient`); None for
+        normals used as given.
+    view : ndarray, shape (3,), or None
+        Unit direction towards the sensor when the normals say the cloud is a single
+        view (:func:`o3d_spectral.normals.view_direction`), in the cloud's frame; None
+        otherwise.
+    sign_disagreement : float or None
+        For given normals: the share of neighbours whose normals point to opposite sides
+        (:func:`o3d_spectral.normals.sign_disagreement`).
+    flatness : float
+        Length of the mean unit normal: 1 when all normals are alike (a plane, whose
+        EGI leaves the rotation about it free), near 0 for a closed surface.
     """
-    points, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
-    centred = points - points.mean(axis=0)  # Qhull loses precision far from the origin
-    spread = np.linalg.svd(centred[:: max(len(points) // 2000, 1)], compute_uv=False)
-    if spread[2] < 1e-6 * spread[0]:  # a plane: one normal, and nothing for Qhull to do
-        _, _, axes = np.linalg.svd(centred[:: max(len(points) // 2000, 1)])
-        reference = np.broadcast_to(axes[2], normals.shape)
-    else:
-        step = int(np.ceil(len(points) / PROPAGATED_POINTS))
-        coarse = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centred[::step]))
-        coarse.normals = o3d.utility.Vector3dVector(normals[::step])
-        coarse.orient_normals_consistent_tangent_plane(10)
-        _, nearest = cKDTree(np.asarray(coarse.points)).query(centred)
-        reference = np.asarray(coarse.normals)[nearest]
-    agree = np.einsum("ij,ij->i", normals, reference) >= 0.0
-    return np.where(agree[:, None], normals, -normals)
+
+    normals_from: str = "given"
+    orientation: str | None = None
+    view: NDArray[np.float64] | None = None
+    sign_disagreement: float | None = None
+    flatness: float = 0.0
+
+    def turned(self, rotation: NDArray[np.float64]) -> CloudReading:
+        """The same reading of the cloud turned by ``rotation`` (3, 3)."""
+        view = None if self.view is None else rotation @ self.view
+        return replace(self, view=view)
 
 
 @dataclass(frozen=True)
@@ -268,12 +224,15 @@ class PreparedCloud:
         Unit normals, the EGI's input (each counts once).
     normal_points : ndarray, shape (K, 3)
         Where those normals are, metres.
+    reading : CloudReading
+        How its normals were obtained and whether it is a single view.
     """
 
     points: NDArray[np.float64]
     point_normals: NDArray[np.float64]
     normals: NDArray[np.float64]
     normal_points: NDArray[np.float64]
+    reading: CloudReading
 
 
 def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> None:
@@ -288,6 +247,24 @@ def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> N
         raise ValueError(f"{name} is degenerate: its points lie (nearly) on a line")
 
 
+def _signs_checked(
+    arrays: CloudArrays, voxel_size: float, camera_location: ArrayLike | None,
+    origin: ArrayLike | None,
+) -> tuple[CloudArrays, str | None, float]:
+    """Given normals as they are when their signs agree along the surface; otherwise
+    re-oriented with the rule :func:`o3d_spectral.normals.orient` names (returned, with
+    the share of neighbours that disagreed)."""
+    disagreement = sign_disagreement(arrays.points, arrays.normals)
+    if disagreement <= SIGN_DISAGREEMENT:
+        return arrays, None, disagreement
+    lengths = np.linalg.norm(arrays.normals, axis=1, keepdims=True)
+    unit = np.divide(arrays.normals, lengths, out=np.zeros_like(arrays.normals),
+                     where=lengths > 1e-12)
+    normals, rule = orient(arrays.points, unit, voxel_size, camera_location=camera_location,
+                           origin=origin)
+    return CloudArrays(arrays.points, normals * lengths), rule, disagreement
+
+
 def prepare(
     arrays: CloudArrays,
     voxel_size: float,
@@ -299,17 +276,18 @@ def prepare(
     origin: ArrayLike | None = None,
     name: str = "cloud",
 ) -> PreparedCloud:
-    """Down-sample a cloud and provide unit normals.
+    """Down-sample a cloud and provide unit normals, consistently oriented.
 
     Given normals are used point by point, unaveraged, so that the EGI of a rotated copy
     of a cloud is exactly the rotated EGI (every point counts once: down-sample a cloud
-    of very uneven density first). When the cloud has no normals they are estimated on
-    the cloud averaged per cell of ``egi_voxel_size`` (PCA over ``normal_radius``, 30
-    neighbours at most) and oriented: towards ``camera_location`` when given; otherwise
-    towards the origin when the cloud is a depth map seen from an origin outside it (a scan
-    in its sensor's frame, :func:`is_depth_map`), else consistently along the surface and
-    outward from the centroid (a model; pass ``camera_location`` for a 360-degree scan).
-    The voxel grid's points are the cloud averaged per voxel of ``voxel_size``.
+    of very uneven density first); when their signs disagree along the surface they are
+    oriented again. When the cloud has no normals they are estimated on the cloud
+    averaged per cell of ``egi_voxel_size`` (PCA over ``normal_radius``, 30 neighbours at
+    most). Either way the signs are chosen by :func:`o3d_spectral.normals.orient`:
+    towards ``camera_location`` when given; towards the origin when the cloud is a depth
+    map seen from an origin outside it (a scan in its sensor's frame); else consistently
+    along the surface and outward from the centroid. The voxel grid's points are the
+    cloud averaged per voxel of ``voxel_size``.
 
     Parameters
     ----------
@@ -328,7 +306,7 @@ def prepare(
         Where the origin of the frame the caller gave the cloud in lies, metres (a
         scan's sensor when it is in its sensor's frame); the origin when omitted.
     name : str
-        Argument name used in error messages.
+        Argument name used in error and log messages.
 
     Returns
     -------
@@ -341,14 +319,20 @@ def prepare(
         (nearly) collinear.
     """
     arrays = _without_isolated(arrays, voxel_size, name)
+    normals_from, rule, disagreement = "given", None, None
+    if arrays.normals is not None:
+        arrays, rule, disagreement = _signs_checked(arrays, voxel_size, camera_location, origin)
+        normals_from = "given" if rule is None else "re-oriented"
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
     coarse = fine.voxel_down_sample(voxel_size)
     _check_shape(np.asarray(coarse.points), voxel_size, name)
     if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
-        where = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
-        _orient(fine, camera_location, voxel_size, where)
+        oriented, rule = orient(np.asarray(fine.points), np.asarray(fine.normals), voxel_size,
+                                camera_location=camera_location, origin=origin)
+        fine.normals = o3d.utility.Vector3dVector(oriented)
+        normals_from = "estimated"
         coarse = fine.voxel_down_sample(voxel_size)  # again, averaging the new normals
     points = np.asarray(coarse.points).copy()
     point_normals = np.asarray(coarse.normals)
@@ -356,7 +340,7 @@ def prepare(
     point_normals = np.divide(
         point_normals, lengths, out=np.zeros_like(point_normals), where=lengths > 1e-6
     )
-    if arrays.normals is None:
+    if normals_from == "estimated":
         normals, normal_points = np.asarray(fine.normals), np.asarray(fine.points)
     else:
         normals, normal_points = arrays.normals, arrays.points
@@ -366,6 +350,8 @@ def prepare(
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
     if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)
         keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
-    return PreparedCloud(
-        points, point_normals, normals[keep] / length[keep, None], normal_points[keep].copy()
-    )
+    unit, where = normals[keep] / length[keep, None], normal_points[keep].copy()
+    flatness = float(np.linalg.norm(unit.mean(axis=0)))
+    view = view_direction(where, unit, voxel_size)
+    reading = CloudReading(normals_from, rule, view, disagreement, flatness)
+    return PreparedCloud(points, point_normals, unit, where, reading)

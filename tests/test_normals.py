@@ -1,0 +1,158 @@
+"""Normals: sign checks, orientation, and single views recognised in any frame
+(o3d_spectral.normals), checked on exact shapes and on the bundled real scans."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import open3d as o3d
+import pytest
+from scipy.spatial.transform import Rotation
+
+import o3d_spectral
+from o3d_spectral.cloud import as_arrays, prepare
+from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.harness.real import load_cases
+from o3d_spectral.normals import (
+    SIGN_DISAGREEMENT,
+    orient,
+    sensor_direction,
+    sign_disagreement,
+    view_direction,
+)
+
+VOXEL = 0.008
+
+
+def _sphere(n: int = 4000, radius: float = 0.05, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(n, 3))
+    return u / np.linalg.norm(u, axis=1, keepdims=True) * radius
+
+
+def _world(degrees=(30.0, -50.0, 80.0)) -> np.ndarray:
+    W = np.eye(4)
+    W[:3, :3] = Rotation.from_euler("xyz", degrees, degrees=True).as_matrix()
+    return W
+
+
+def _crop(name: str):
+    return next(c for c in load_cases(["ycbv_crop"]) if c.name == f"ycbv_crop_{name}")
+
+
+def _in_world_frame(case):
+    """The crop moved so that the world origin is inside its bounding box; the motion."""
+    W = _world()
+    centre = np.asarray(case.target.points).mean(axis=0)
+    W[:3, 3] = -W[:3, :3] @ centre + [0.01, -0.02, 0.005]
+    return o3d.geometry.PointCloud(case.target).transform(W), W
+
+
+def test_consistent_normals_agree_and_random_signs_do_not():
+    points = _sphere()
+    outward = points / np.linalg.norm(points, axis=1, keepdims=True)
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(len(points), 1))
+    assert sign_disagreement(points, outward) == 0.0
+    assert sign_disagreement(points, outward * signs) > 0.3
+
+
+def test_open3d_unoriented_estimate_on_a_real_scan_is_caught():
+    scan = o3d.geometry.PointCloud(load_cases(["dragon_24"])[0].source)
+    scan.estimate_normals()  # Open3D's default: no orientation step
+    points, normals = np.asarray(scan.points), np.asarray(scan.normals)
+    assert sign_disagreement(points, normals) > SIGN_DISAGREEMENT
+    scan.orient_normals_towards_camera_location([0.0, 0.0, 10.0])
+    assert sign_disagreement(points, np.asarray(scan.normals)) < SIGN_DISAGREEMENT
+
+
+def test_orient_towards_a_camera_and_outward_on_a_model():
+    points = _sphere()
+    outward = points / np.linalg.norm(points, axis=1, keepdims=True)
+    signs = np.random.default_rng(2).choice([-1.0, 1.0], size=(len(points), 1))
+    camera = np.array([0.0, 0.0, 1.0])
+    toward, rule = orient(points, outward * signs, VOXEL, camera_location=camera)
+    assert rule == "camera"
+    assert np.all(np.einsum("ij,ij->i", toward, camera - points) >= 0.0)
+    model, rule = orient(points, outward * signs, VOXEL)
+    assert rule == "surface"
+    assert np.mean(np.einsum("ij,ij->i", model, outward) > 0.0) > 0.99
+
+
+def test_a_closed_surface_is_no_view_and_a_cap_seen_from_afar_is():
+    points = _sphere()
+    outward = points / np.linalg.norm(points, axis=1, keepdims=True)
+    assert view_direction(points, outward, VOXEL) is None
+    assert sensor_direction(points, outward, VOXEL) is None
+    d = np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9])
+    cap = outward @ d > 0.2  # what a distant sensor in direction d sees of it
+    found = view_direction(points[cap], outward[cap], VOXEL)
+    assert found is not None and np.degrees(np.arccos(found @ d)) < 10.0
+
+
+@pytest.mark.parametrize("name", ["009_gelatin_box", "061_foam_brick"])
+def test_normals_estimated_on_a_view_in_a_world_frame_face_its_sensor(name):
+    world, W = _in_world_frame(_crop(name))
+    prepared = prepare(as_arrays(world), VOXEL)
+    sensor = W[:3, 3]  # the camera, at the camera frame's origin
+    facing = np.einsum("ij,ij->i", prepared.normals, sensor - prepared.normal_points) > 0.0
+    assert prepared.reading.orientation == "hemisphere"
+    assert prepared.reading.view is not None
+    assert facing.mean() >= 0.99
+
+
+def test_a_view_in_a_world_frame_registers_as_in_its_camera_frame():
+    # The foam brick is nearly a cuboid: a 180-degree turn about one of its axes fits the
+    # view as well as the truth does, so the check is the fit and the centroid's place.
+    case = _crop("061_foam_brick")
+    world, W = _in_world_frame(case)
+    in_camera = o3d_spectral.registration_spectral_global(case.source, case.target, VOXEL)
+    in_world = o3d_spectral.registration_spectral_global(case.source, world, VOXEL)
+    centre = np.asarray(case.source.points).mean(axis=0)
+    for result, truth in ((in_camera, case.T_gt), (in_world, W @ case.T_gt)):
+        assert translation_error(result.transformation, truth, center=centre) < 0.003
+        assert result.fitness > 0.7
+        assert result.target_viewpoint is not None  # matched as its sensor saw it
+    assert abs(in_world.fitness - in_camera.fitness) < 0.05
+
+
+def test_unoriented_normals_are_reoriented_with_a_warning(caplog):
+    case = load_cases(["dragon_24"])[0]
+    source, target = o3d.geometry.PointCloud(case.source), o3d.geometry.PointCloud(case.target)
+    for cloud in (source, target):
+        cloud.estimate_normals()
+    before = np.asarray(source.normals).copy()
+    with caplog.at_level(logging.WARNING, logger="o3d_spectral"):
+        result = o3d_spectral.registration_spectral_global(source, target, 0.005)
+    assert result.source_reading.normals_from == "re-oriented"
+    assert result.target_reading.normals_from == "re-oriented"
+    assert any("oriented again" in message for message in caplog.messages)
+    assert np.array_equal(np.asarray(source.normals), before)  # the caller's untouched
+    centre = np.asarray(case.source.points).mean(axis=0)
+    assert rotation_error(result.transformation, case.T_gt) < 5.0
+    assert translation_error(result.transformation, case.T_gt, center=centre) < 0.01
+
+
+def test_two_views_are_matched_whole():
+    case = load_cases(["dragon_24"])[0]
+    result = o3d_spectral.registration_spectral(case.source, case.target, 0.005, case.T_gt)
+    assert result.source_reading.view is not None and result.target_reading.view is not None
+    assert result.target_viewpoint is None
+
+
+def test_a_plane_and_a_run_cut_short_each_log_a_warning(caplog):
+    rng = np.random.default_rng(3)
+    plane = np.c_[rng.uniform(-0.1, 0.1, (3000, 2)), np.zeros(3000)]
+    with caplog.at_level(logging.WARNING, logger="o3d_spectral"):
+        result = o3d_spectral.registration_spectral(plane, plane, VOXEL)
+    assert any("nearly all alike" in message for message in result.warnings)
+    assert any("nearly all alike" in message for message in caplog.messages)
+    caplog.clear()
+    bowl = _sphere()
+    bowl = bowl[bowl[:, 2] < 0.02]
+    short = o3d_spectral.SpectralConvergenceCriteria(max_iteration=1)
+    with caplog.at_level(logging.WARNING, logger="o3d_spectral"):
+        result = o3d_spectral.registration_spectral(bowl, bowl + [0.01, 0.0, 0.0], VOXEL,
+                                                    criteria=short)
+    assert not result.converged
+    assert any("max_iteration=1" in message for message in caplog.messages)
