@@ -31,11 +31,8 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
         SpectralConvergenceCriteria,
         SpectralRegistrationOption,
     )
-    from .registration import (
-        SpectralRegistrationResult,
-        registration_spectral,
-        registration_spectral_global,
-    )
+    from .registration import registration_spectral, registration_spectral_global
+    from .result import SpectralRegistrationResult
     from .stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = [
@@ -60,7 +57,7 @@ __getattr__ = lazy_attributes(
     {
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
-        "SpectralRegistrationResult": "registration",
+        "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",
         "GlobalSearchOption": "options",
         "RefinementOption": "options",

@@ -12,7 +12,6 @@ moving cloud, run the law (:mod:`o3d_spectral.law`), polish the pose
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass
 
@@ -23,7 +22,8 @@ from numpy.typing import ArrayLike, NDArray
 from . import centring
 from ._checks import check_instance, check_number, check_transformation
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
-from .law import Climb, IterationRecord, climb
+from .diagnostics import registration_warnings
+from .law import Climb, climb
 from .options import (
     CloudOption,
     GlobalSearchOption,
@@ -32,69 +32,17 @@ from .options import (
     SpectralRegistrationOption,
 )
 from .refinement import near_pose, refine
+from .result import SpectralRegistrationResult
 from .search import confidence, global_search
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global"]
-
-logger = logging.getLogger(__name__)
 
 #: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
 DEFAULT_REFINEMENT = RefinementOption()
 #: The refinement sees the target within the source's radius, or this many voxels if
 #: more, of the ball holding the posed source.
 REFINEMENT_MARGIN = 10.0
-
-
-class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
-    """Open3D's ``RegistrationResult`` with the spectral method's extra outputs.
-
-    ``transformation``, ``fitness``, ``inlier_rmse`` and ``correspondence_set`` mean what
-    they mean for Open3D's own methods: they come from
-    ``open3d.pipelines.registration.evaluate_registration`` at
-    :attr:`max_correspondence_distance`.
-
-    Attributes
-    ----------
-    converged : bool
-        The convergence criteria were met before ``max_iteration``.
-    num_iterations : int
-    history : list of IterationRecord
-        The law's iterations from ``init`` (local call), or those of the hypothesis
-        climbed on to convergence (global call).
-    run_time : float
-        Seconds, from the call to the return (evaluation included).
-    max_correspondence_distance : float
-        Metres.
-    translation_peak : float
-        Phase-correlation peak height in [0, 1] at the returned pose before the
-        refinement, a confidence figure.
-    hypotheses : list of (ndarray (4, 4), float)
-        Global call only: for each climbed hypothesis, its best-scoring iterate and its
-        score (phase-correlation peak times EGI correlation), best first. The returned
-        transformation is the first, refined.
-    confidence : float
-        Global call only: the best score minus that of the best hypothesis ending in a
-        distinct rotation (over 10 degrees away); 0 for the local call.
-    """
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.converged = False
-        self.num_iterations = 0
-        self.history: list[IterationRecord] = []
-        self.run_time = 0.0
-        self.max_correspondence_distance = 0.0
-        self.translation_peak = 0.0
-        self.hypotheses: list[tuple[NDArray[np.float64], float]] = []
-        self.confidence = 0.0
-
-    def __repr__(self) -> str:
-        return (
-            f"SpectralRegistrationResult with fitness={self.fitness:e}, "
-            f"inlier_rmse={self.inlier_rmse:e}, converged={self.converged}, "
-            f"num_iterations={self.num_iterations}, run_time={self.run_time:.3f} s"
-        )
 
 
 @dataclass
@@ -158,9 +106,17 @@ def _finish(
     """Polish ``transformation`` (4, 4), measure it, and fill ``result``."""
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
-    if not best.converged:
-        logger.info("the control law stopped at max_iteration=%d before converging",
-                    run.criteria.max_iteration)
+    result.source_reading = run.moving.reading.turned(run.init[:3, :3].T)  # source frame
+    result.target_reading = run.stepper.target_reading
+    if run.stepper.sees(run.moving):
+        result.target_viewpoint = run.stepper.viewpoint.copy()
+        if run.offset is not None:
+            result.target_viewpoint += run.offset
+    result.warnings = registration_warnings(
+        converged=best.converged, max_iteration=run.criteria.max_iteration,
+        readings={"source": result.source_reading, "target": result.target_reading},
+        confidence=result.confidence if result.hypotheses else None,
+    )
     source, target = to_legacy(run.source), to_legacy(run.target)  # once, for both
     voxel_size = run.stepper.voxel_size
     if refinement is not None:
@@ -217,12 +173,14 @@ def _with_normals(
 _COMMON_PARAMETERS = """source, target : PointCloud, tensor PointCloud or ndarray
         Clouds in metres (``open3d.geometry.PointCloud``, ``open3d.t.geometry.PointCloud``);
         numpy arrays of shape (N, 3), or (N, 6) with normals in the last three columns.
-        Neither is modified. Normals are used when present; otherwise they are estimated
-        (PCA, radius ``cloud.normal_radius``) and oriented towards
-        ``cloud.camera_location``, or towards the origin when the cloud is a depth map
-        seen from the origin (a scan in its sensor's frame), or outward (a model).
-        Given normals must be consistently oriented (outward for a model, towards the
-        sensor for a scan).
+        Neither is modified. Normals are used when present (oriented again, with a
+        warning, when neighbours' point to opposite sides: an estimate with no
+        orientation step); otherwise estimated (PCA, radius ``cloud.normal_radius``).
+        Signs are chosen towards ``cloud.camera_location``, or towards the origin for a
+        depth map seen from it (a scan in its sensor's frame), or outward along the
+        surface (a model, or a view in another frame). A cloud whose normals lie in one
+        hemisphere is a single view (``result.source_reading.view``): a model is matched
+        against a view as its sensor would see it; two views are matched whole.
     voxel_size : float
         Voxel edge, metres (the paper uses 0.008). Both clouds are down-sampled to it."""
 

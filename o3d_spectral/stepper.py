@@ -27,11 +27,13 @@ from scipy.spatial import cKDTree
 
 from . import so3
 from ._checks import check_instance
-from .cloud import MIN_POINTS, PreparedCloud, as_arrays, extent, prepare
+from .cloud import MIN_POINTS, CloudReading, PreparedCloud, as_arrays, extent, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
+from .evaluation import Evaluation
+from .normals import sensor_position
 from .options import CloudOption, SpectralRegistrationOption
-from .rotation import RotationGradient, curvature_scale, gradient, rotation_step
+from .rotation import curvature_scale, gradient, rotation_step
 from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
 from .target_grid import TargetGrid
 
@@ -65,6 +67,8 @@ class MovingCloud:
         Real spherical harmonics at each of ``point_normals``
         (:func:`o3d_spectral.egi.harmonics_table`), kept when the fixed cloud is a
         single view: the visible part's EGI is then one product per pose.
+    reading : CloudReading
+        How the cloud was read: its normals' provenance, and ``view`` (turned with it).
     """
 
     points: NDArray[np.float64]
@@ -73,64 +77,11 @@ class MovingCloud:
     radius: float
     coefficients: NDArray[np.float64]
     harmonics: NDArray[np.float64] | None = None
+    reading: CloudReading = CloudReading()
 
     def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
         """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
         return (self.points - self.centroid) @ rotation.T + self.centroid + translation
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """Full corrections and costs at one pose of the moving cloud.
-
-    Attributes
-    ----------
-    translation : ndarray, shape (3,)
-        ``grad_glob T``: shift (metres, fixed frame) taking the moved cloud onto the fixed one.
-    rotation : ndarray, shape (3,)
-        Rotation step (radians) for a right perturbation ``R exp(hat(rotation))``.
-    rotation_gradient : ndarray, shape (3,)
-        The paper's ``grad C_r(R, e_k)``, before scaling.
-    correlation : float
-        ``C_r(R)`` of the normalised EGIs, in [-1/4pi, 1/4pi].
-    translation_peak : float
-        Height of the phase-correlation peak in [0, 1] (1: identical grids).
-    cost_translation, cost_rotation : float
-        ``J_t`` and ``J_r`` (eqs. translation_cost_function, rotation_cost_function) on
-        unit-norm grids and coefficients, each in [0, 2].
-    """
-
-    translation: NDArray[np.float64]
-    rotation: NDArray[np.float64]
-    rotation_gradient: NDArray[np.float64]
-    correlation: float
-    translation_peak: float
-    cost_translation: float
-    cost_rotation: float
-
-    @classmethod
-    def of(
-        cls, translation: NDArray[np.float64], rotation: NDArray[np.float64],
-        local: RotationGradient, peak: float, cost_translation: float,
-    ) -> Evaluation:
-        """From the full corrections, the rotation correlation's derivatives ``local`` at
-        the pose, the phase-correlation peak and ``J_t``."""
-        return cls(
-            translation=translation,
-            rotation=rotation,
-            rotation_gradient=local.gradient,
-            correlation=local.value,
-            translation_peak=peak,
-            cost_translation=cost_translation,
-            cost_rotation=float(1.0 - 4.0 * np.pi * local.value),
-        )
-
-    def within(self, tolerance: tuple[float, float]) -> bool:
-        """Both full corrections below ``(metres, radians)`` (eq. updaterule's test)."""
-        return bool(
-            np.linalg.norm(self.translation) < tolerance[0]
-            and np.linalg.norm(self.rotation) < tolerance[1]
-        )
 
 
 class SpectralStepper:
@@ -176,6 +127,7 @@ class SpectralStepper:
         self.normals_centre = prepared.normal_points.mean(axis=0)
         self.target_coefficients = self._smoothed_levels(self._egi(prepared.normals))
         self.viewpoint = self._viewpoint(prepared)
+        self.target_reading = prepared.reading
 
     @property
     def levels(self) -> int:
@@ -204,14 +156,10 @@ class SpectralStepper:
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
         """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
         choice = self.cloud.target_viewpoint
-        if choice is None:
-            return None
-        if not isinstance(choice, str):
-            return np.asarray(choice, dtype=np.float64)
-        sensor = self.frame_origin
-        has_normal = np.any(target.point_normals != 0.0, axis=1)
-        toward = np.einsum("ij,ij->i", target.point_normals, sensor - target.points) > 0.0
-        return sensor if toward[has_normal].mean() >= 0.9 else None
+        if choice is None or not isinstance(choice, str):
+            return None if choice is None else np.asarray(choice, dtype=np.float64)
+        return sensor_position(target.points, target.point_normals, target.reading.view,
+                               self.frame_origin)
 
     def _egi(
         self, normals: NDArray[np.float64], weights: NDArray[np.float64] | None = None
@@ -247,13 +195,24 @@ class SpectralStepper:
             M = np.asarray(transformation, dtype=np.float64)
             points = points @ M[:3, :3].T + M[:3, 3]
             point_normals, normals = point_normals @ M[:3, :3].T, normals @ M[:3, :3].T
+        reading = prepared.reading
+        if transformation is not None:
+            reading = reading.turned(M[:3, :3])
         centroid, radius = extent(points)
         B = self.option.bandwidth
         table = None
         fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
-        if self.viewpoint is not None and not self.option.egi_binned and fits:
+        culled = self.viewpoint is not None and reading.view is None
+        if culled and not self.option.egi_binned and fits:
             table = harmonics_table(point_normals, B)
-        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table)
+        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table,
+                           reading)
+
+    def sees(self, moving: MovingCloud) -> bool:
+        """Whether the moving cloud is matched as the fixed cloud's sensor would see it:
+        the fixed cloud is a single view (:attr:`viewpoint`) and the moving cloud is not
+        (two views each miss what the other sees: neither is culled)."""
+        return self.viewpoint is not None and moving.reading.view is None
 
     def focused(self, near: ArrayLike, radius: float) -> SpectralStepper:
         """This stepper with the fixed EGI made only of the fixed cloud's normals within
@@ -283,7 +242,7 @@ class SpectralStepper:
         facing away from the fixed cloud's sensor when it is a single view; the mask and
         the cosines of incidence (None when nothing is culled)."""
         moved = moving.posed(R, T)
-        if self.viewpoint is None:
+        if not self.sees(moving):
             return moved, None, None
         rays = self.viewpoint - moved
         cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
@@ -318,7 +277,7 @@ class SpectralStepper:
         (:func:`o3d_spectral.so3fft.correlation_grid`).
         """
         G = self.target_coefficients[level]
-        if self.viewpoint is None or not visibility:
+        if not (visibility and self.sees(moving)):
             F = self._smooth(moving.coefficients, level)
             return correlation_grid(F, G, n_alpha=samples, n_beta=samples)
         F = smooth(moving.coefficients, self.option.egi_smoothing[level])

@@ -1,0 +1,67 @@
+"""Warnings about a registration's inputs and result, logged and kept in the result.
+
+Each warning is logged on the ``o3d_spectral`` logger (``logging.WARNING``) and appended
+to :attr:`o3d_spectral.SpectralRegistrationResult.warnings`:
+
+- the control law stopped at ``max_iteration`` before converging;
+- a cloud's given normals pointed to opposite sides between neighbours and were oriented
+  again (an estimate with no orientation step);
+- a cloud's normals are nearly all alike (a plane): its EGI leaves the rotation about
+  them free;
+- the global search's confidence is low (:data:`LOW_CONFIDENCE`).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from .cloud import CloudReading
+
+__all__ = ["FLAT", "LOW_CONFIDENCE", "registration_warnings"]
+
+logger = logging.getLogger(__name__)
+
+#: A cloud whose mean unit normal is at least this long is flat (:attr:`CloudReading.flatness`).
+FLAT = 0.97
+#: A global result whose confidence is below this is flagged (see docs/results.md for its
+#: precision on the suites and on real scans).
+LOW_CONFIDENCE = 0.02
+
+
+def registration_warnings(
+    *, converged: bool, max_iteration: int, readings: dict[str, CloudReading],
+    confidence: float | None,
+) -> list[str]:
+    """The warnings of one registration, each logged once.
+
+    Parameters
+    ----------
+    converged : bool
+        The law met its convergence criteria.
+    max_iteration : int
+        The criteria's iteration budget.
+    readings : dict of str to CloudReading
+        How each cloud (``"source"``, ``"target"``) was read.
+    confidence : float or None
+        The global search's confidence; None for the local call.
+    """
+    found = []
+    if not converged:
+        found.append(f"the control law stopped at max_iteration={max_iteration} before "
+                     "converging")
+    for name, reading in readings.items():
+        if reading.normals_from == "re-oriented":
+            found.append(
+                f"{name}: {100 * (reading.sign_disagreement or 0.0):.0f}% of neighbouring "
+                f"normals pointed to opposite sides (an estimate with no orientation "
+                f"step?); they were oriented again ({reading.orientation}): pass "
+                "consistently oriented normals, or CloudOption(camera_location=...)")
+        if reading.flatness >= FLAT:
+            found.append(f"{name}: its normals are nearly all alike (a plane?): the "
+                         "rotation about them is not constrained by its EGI")
+    if confidence is not None and confidence < LOW_CONFIDENCE:
+        found.append(f"low confidence {confidence:.3g} (< {LOW_CONFIDENCE}): another, "
+                     "distinct pose scored almost as well")
+    for text in found:
+        logger.warning(text)
+    return found

@@ -1,0 +1,76 @@
+"""What the registration calls return: Open3D's ``RegistrationResult`` and more."""
+
+from __future__ import annotations
+
+import numpy as np
+import open3d as o3d
+from numpy.typing import NDArray
+
+from .cloud import CloudReading
+from .law import IterationRecord
+
+__all__ = ["SpectralRegistrationResult"]
+
+
+class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
+    """Open3D's ``RegistrationResult`` with the spectral method's extra outputs.
+
+    ``transformation``, ``fitness``, ``inlier_rmse`` and ``correspondence_set`` mean what
+    they mean for Open3D's own methods: they come from
+    ``open3d.pipelines.registration.evaluate_registration`` at
+    :attr:`max_correspondence_distance`.
+
+    Attributes
+    ----------
+    converged : bool
+        The convergence criteria were met before ``max_iteration``.
+    num_iterations : int
+    history : list of IterationRecord
+        The law's iterations from ``init`` (local call), or those of the hypothesis
+        climbed on to convergence (global call).
+    run_time : float
+        Seconds, from the call to the return (evaluation included).
+    max_correspondence_distance : float
+        Metres.
+    translation_peak : float
+        Phase-correlation peak height in [0, 1] at the returned pose before the
+        refinement, a confidence figure.
+    hypotheses : list of (ndarray (4, 4), float)
+        Global call only: for each climbed hypothesis, its best-scoring iterate and its
+        score (phase-correlation peak times EGI correlation), best first. The returned
+        transformation is the first, refined.
+    confidence : float
+        Global call only: the best score minus that of the best hypothesis ending in a
+        distinct rotation (over 10 degrees away); 0 for the local call.
+    source_reading, target_reading : CloudReading
+        How each cloud was read: where its normals came from (given, re-oriented,
+        estimated), the rule that oriented them, and the direction towards its sensor
+        when its normals say it is a single view (:class:`o3d_spectral.cloud.CloudReading`).
+    target_viewpoint : ndarray, shape (3,), or None
+        Where the target's sensor was taken to be (metres) when the source was matched
+        as that sensor would see it (back faces culled); None when matched whole.
+    warnings : list of str
+        What was logged as a warning during the call (:mod:`o3d_spectral.diagnostics`).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.converged = False
+        self.num_iterations = 0
+        self.history: list[IterationRecord] = []
+        self.run_time = 0.0
+        self.max_correspondence_distance = 0.0
+        self.translation_peak = 0.0
+        self.hypotheses: list[tuple[NDArray[np.float64], float]] = []
+        self.confidence = 0.0
+        self.source_reading = CloudReading()
+        self.target_reading = CloudReading()
+        self.target_viewpoint: NDArray[np.float64] | None = None
+        self.warnings: list[str] = []
+
+    def __repr__(self) -> str:
+        return (
+            f"SpectralRegistrationResult with fitness={self.fitness:e}, "
+            f"inlier_rmse={self.inlier_rmse:e}, converged={self.converged}, "
+            f"num_iterations={self.num_iterations}, run_time={self.run_time:.3f} s"
+        )
