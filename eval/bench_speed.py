@@ -44,7 +44,6 @@ import argparse  # noqa: E402
 import csv  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
-import zlib  # noqa: E402
 from collections.abc import Iterator  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -55,7 +54,6 @@ from tqdm import tqdm  # noqa: E402
 
 import o3d_spectral  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
-from o3d_spectral.harness.errors import rotation_error, translation_error  # noqa: E402
 from o3d_spectral.harness.methods import get_method  # noqa: E402
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
@@ -65,11 +63,8 @@ o3d.utility.set_max_threads(1)  # Open3D's TBB pool has no environment variable
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 SUITE_VOXEL = 0.008
-REAL_VOXEL = {"dragon_24": 0.005, "dragon_48": 0.005, "dragon_72": 0.005,
-              "ycbv_crop": 0.008, "ycbv_frame": 0.008}
 METHODS = ("spectral_global", "fpfh_ransac")
 SUITE_SIZE = 48
-MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
 
 
 @dataclass
@@ -119,23 +114,16 @@ def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
 
 
 def real_tasks(group: str, rotations: int, limit: int) -> Iterator[Task]:
-    count = 0
-    for case in real.load_cases([group]):
-        for r in range(rotations):
-            if count >= limit:
-                return
-            count += 1
-            seed = zlib.crc32(f"{case.name}/{r}".encode()) & 0x7FFFFFFF
-            turned, _ = real.randomly_rotated(case, seed)
-            centre = np.asarray(turned.source.points).mean(axis=0)
+    for count, (turned, _, seed, r) in enumerate(real.rotated_cases([group], rotations)):
+        if count >= limit:
+            return
 
-            def score(T, T_gt=turned.T_gt, centre=centre):
-                rot = rotation_error(T, T_gt)
-                tra = translation_error(T, T_gt, center=centre)
-                return rot, tra, bool(rot < MAX_ROTATION_DEG and tra < MAX_TRANSLATION_M)
+        def score(T, case=turned):
+            rotation, translation = real.case_errors(T, case)
+            return rotation, translation, real.is_success(rotation, translation)
 
-            yield Task(group, f"{case.name}_r{r}", turned.source, turned.target,
-                       REAL_VOXEL[group], seed, score)
+        yield Task(group, f"{turned.name}_r{r}", turned.source, turned.target,
+                   real.VOXEL_SIZES[group], seed, score)
 
 
 def run_task(task: Task) -> list[dict]:

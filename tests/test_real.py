@@ -162,3 +162,46 @@ def test_data_folder_from_the_environment(monkeypatch, tmp_path):
     (tmp_path / "dragon").mkdir()
     (tmp_path / "dragon" / "dragonStandRight.conf").write_text("")
     assert real.real_dir() == tmp_path
+
+
+@pytest.mark.parametrize("name", ["dragon_48_72", "ycbv_crop_061_foam_brick"])
+def test_normal_modes(name):
+    """Oriented normals face each scan's sensor (turned with the source) and agree along
+    the surface; unoriented ones are Open3D's estimate, with signs that disagree."""
+    from o3d_spectral.normals import SIGN_DISAGREEMENT, sign_disagreement
+
+    case = next(c for c in CASES if c.name == name)
+    turned, M = randomly_rotated(case, seed=5)
+    oriented = real.with_normals(turned, "oriented", M)
+    sensor = np.asarray(real.DRAGON_SENSOR) if case.group.startswith("dragon") else np.zeros(3)
+    target_points = np.asarray(oriented.target.points)
+    facing = np.einsum("ij,ij->i", np.asarray(oriented.target.normals), sensor - target_points)
+    assert np.mean(facing > 0) == 1.0
+    if case.group.startswith("dragon"):  # the source's sensor turned with it
+        points = np.asarray(oriented.source.points)
+        moved_sensor = M[:3, :3] @ sensor + M[:3, 3]
+        facing = np.einsum("ij,ij->i", np.asarray(oriented.source.normals), moved_sensor - points)
+        assert np.mean(facing > 0) == 1.0
+    for cloud in (oriented.source, oriented.target):
+        assert sign_disagreement(np.asarray(cloud.points), np.asarray(cloud.normals)) < 0.01
+    unoriented = real.with_normals(turned, "unoriented", M)
+    target = unoriented.target
+    assert sign_disagreement(np.asarray(target.points), np.asarray(target.normals)) > (
+        SIGN_DISAGREEMENT
+    )
+    none = real.with_normals(turned, "none", M)
+    assert not none.source.has_normals() and not none.target.has_normals()
+    assert not turned.source.has_normals()  # the given case is left as it was
+    with pytest.raises(ValueError, match="unknown normal mode"):
+        real.with_normals(turned, "flipped")
+
+
+def test_rotated_cases_are_seeded_by_name():
+    first = [(c.name, seed, r) for c, _, seed, r in real.rotated_cases(["ycbv_crop"], 2)]
+    again = [(c.name, seed, r) for c, _, seed, r in real.rotated_cases(["ycbv_crop"], 2)]
+    assert first == again and len(first) == 6 and len({seed for _, seed, _ in first}) == 6
+    case, M, seed, _ = next(real.rotated_cases(["ycbv_crop"], 1))
+    np.testing.assert_array_equal(M, randomly_rotated(load_cases(["ycbv_crop"])[0], seed)[1])
+    assert real.case_errors(case.T_gt, case) == (pytest.approx(0.0, abs=1e-4),
+                                                 pytest.approx(0.0, abs=1e-9))
+    assert real.is_success(4.9, 0.0099) and not real.is_success(5.0, 0.0)

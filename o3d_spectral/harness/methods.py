@@ -61,7 +61,7 @@ Method = Callable[
 #: last iteration, and ``trajectory`` (ndarray (K, 4, 4): the estimate at the start of each
 #: iteration, turned into error curves by the runner).
 INFO_KEYS = ("iterations", "converged", "translation_gradient_norm", "rotation_gradient_norm",
-             "trajectory")
+             "trajectory", "confidence")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,6 +167,7 @@ def register_spectral_variant(name: str, *, global_search: bool = False, **setti
             "translation_gradient_norm": last.translation_gradient_norm,
             "rotation_gradient_norm": last.rotation_gradient_norm,
             "trajectory": np.stack([record.transformation for record in result.history]),
+            "confidence": result.confidence if global_search else None,
         }
         return np.asarray(result.transformation), info
 

@@ -20,6 +20,8 @@ o3d-spectral/real``; the environment variable ``O3D_SPECTRAL_REAL_DATA`` names a
 
 from __future__ import annotations
 
+import zlib
+from collections.abc import Iterator
 from functools import cache
 from pathlib import Path
 from typing import NamedTuple
@@ -29,16 +31,23 @@ import open3d as o3d
 from scipy.spatial.transform import Rotation
 
 from o3d_spectral._bundled import bundled_folder
+from o3d_spectral.harness.errors import rotation_error, translation_error
 
 __all__ = [
     "DRAGON_ANGLES",
     "GROUPS",
+    "NORMAL_MODES",
     "YCBV_CLASSES",
     "RealCase",
     "dragon_pose",
     "load_cases",
     "randomly_rotated",
     "real_dir",
+    "with_normals",
+    "VOXEL_SIZES",
+    "rotated_cases",
+    "case_errors",
+    "is_success",
 ]
 
 #: Turntable angles (degrees) of the bundled dragon scans.
@@ -47,6 +56,20 @@ DRAGON_ANGLES: tuple[int, ...] = tuple(range(0, 169, 24))
 YCBV_CLASSES: tuple[str, ...] = ("009_gelatin_box", "025_mug", "061_foam_brick")
 #: The groups of cases, in order.
 GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "ycbv_crop", "ycbv_frame")
+#: How :func:`with_normals` gives a case's clouds normals: as a sensor's software would
+#: ("oriented"), as Open3D's ``estimate_normals()`` alone leaves them ("unoriented"), or
+#: none (the method estimates its own).
+NORMAL_MODES: tuple[str, ...] = ("oriented", "unoriented", "none")
+#: Voxel size (metres) each group is registered at: the dragon is 0.2 m across, the
+#: YCB-Video objects are the suites' objects (8 mm, as the suites).
+VOXEL_SIZES: dict[str, float] = {"dragon_24": 0.005, "dragon_48": 0.005, "dragon_72": 0.005,
+                                 "ycbv_crop": 0.008, "ycbv_frame": 0.008}
+#: Success: rotation error under 5 degrees and translation error (at the source's
+#: centroid) under 1 cm, plain (no symmetry groups are known for these models).
+MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
+#: Where the dragon scanner looked from, in every scan's frame: far along +z (the scans'
+#: normals facing it agree with the scans' neighbours; checked in tests/test_real.py).
+DRAGON_SENSOR = (0.0, 0.0, 10.0)
 _FRAME = "0000_000001"
 _MARKER = Path("dragon") / "dragonStandRight.conf"
 
@@ -193,3 +216,79 @@ def randomly_rotated(case: RealCase, seed: int) -> tuple[RealCase, np.ndarray]:
     source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points @ rotation.T + M[:3, 3]))
     target = o3d.geometry.PointCloud(case.target)
     return case._replace(source=source, target=target, T_gt=case.T_gt @ np.linalg.inv(M)), M
+
+
+def with_normals(case: RealCase, mode: str, motion: np.ndarray | None = None) -> RealCase:
+    """The case with normals on both clouds as :data:`NORMAL_MODES` ``mode`` says.
+
+    Normals are estimated by Open3D's ``estimate_normals()`` (its default: PCA over 30
+    neighbours) on new copies. ``"oriented"`` then turns them towards each cloud's sensor:
+    the dragon scanner (:data:`DRAGON_SENSOR` in the scan's frame) and the YCB-Video
+    camera (the camera frame's origin), or, for a YCB-Video model, consistently along
+    the surface and outward (Open3D's ``orient_normals_consistent_tangent_plane(10)``,
+    the sign making the mean of ``n . (p - centroid)`` positive). ``"unoriented"`` leaves
+    the signs as the estimate gives them; ``"none"`` returns copies without normals.
+
+    Parameters
+    ----------
+    case : RealCase
+    mode : str
+        One of :data:`NORMAL_MODES`.
+    motion : ndarray, shape (4, 4), optional
+        The motion :func:`randomly_rotated` applied to the source, which turns its
+        sensor with it.
+    """
+    if mode not in NORMAL_MODES:
+        raise ValueError(f"unknown normal mode {mode!r}; choose from {', '.join(NORMAL_MODES)}")
+    motion = np.eye(4) if motion is None else np.asarray(motion, dtype=np.float64)
+    source, target = o3d.geometry.PointCloud(case.source), o3d.geometry.PointCloud(case.target)
+    if mode == "none":
+        return case._replace(source=source, target=target)
+    for cloud in (source, target):
+        cloud.estimate_normals()
+    if mode == "oriented":
+        dragon = case.group.startswith("dragon")
+        sensor = np.asarray(DRAGON_SENSOR) if dragon else np.zeros(3)
+        target.orient_normals_towards_camera_location(sensor)
+        if dragon:
+            source.orient_normals_towards_camera_location(motion[:3, :3] @ sensor + motion[:3, 3])
+        else:
+            _outward(source)
+    return case._replace(source=source, target=target)
+
+
+def _outward(model: o3d.geometry.PointCloud) -> None:
+    """A model's normals oriented consistently along its surface, then outward."""
+    model.orient_normals_consistent_tangent_plane(10)
+    points, normals = np.asarray(model.points), np.asarray(model.normals)
+    if np.mean(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))) < 0.0:
+        model.normals = o3d.utility.Vector3dVector(-normals)
+
+
+def rotated_cases(
+    groups: tuple[str, ...] | list[str] | None, rotations: int
+) -> Iterator[tuple[RealCase, np.ndarray, int, int]]:
+    """Every case of ``groups`` from ``rotations`` seeded random rotations of its source.
+
+    Yields ``(case, M, seed, r)``: the case turned by :func:`randomly_rotated` with the
+    seed ``crc32("<name>/<r>")`` (the same across runs and machines), its motion ``M``,
+    the seed and ``r`` in ``range(rotations)``.
+    """
+    for case in load_cases(groups):
+        for r in range(rotations):
+            seed = zlib.crc32(f"{case.name}/{r}".encode()) & 0x7FFFFFFF
+            turned, motion = randomly_rotated(case, seed)
+            yield turned, motion, seed, r
+
+
+def case_errors(transformation: np.ndarray, case: RealCase) -> tuple[float, float]:
+    """Rotation error (degrees) and translation error at the source's centroid (metres)
+    of an estimate ``transformation`` (4, 4) against ``case.T_gt``."""
+    centre = np.asarray(case.source.points).mean(axis=0)
+    return (rotation_error(transformation, case.T_gt),
+            translation_error(transformation, case.T_gt, center=centre))
+
+
+def is_success(rotation_deg: float, translation_m: float) -> bool:
+    """Both errors under :data:`MAX_ROTATION_DEG` and :data:`MAX_TRANSLATION_M`."""
+    return bool(rotation_deg < MAX_ROTATION_DEG and translation_m < MAX_TRANSLATION_M)

@@ -360,6 +360,11 @@ def write_results_table(out: Path) -> Path:
     return table
 
 
+#: Row columns only some methods fill (None for the others): read as floats, so that a
+#: selection of rows has the same dtype whichever methods it holds.
+FLOAT_COLUMNS = frozenset({"confidence"})
+
+
 def load_results(path: str | Path):
     """The rows of a run as a ``pandas.DataFrame``, sorted by suite, instance and method
     (a pair done twice, by concurrent sessions, once: the later session's row).
@@ -376,7 +381,10 @@ def load_results(path: str | Path):
     rows = [row for file in files for row in _rows(file)]  # json: floats stay exact
     if not rows:
         raise ValueError(f"{path} holds no results yet")
-    frame = require("pandas").DataFrame(rows)
+    pandas = require("pandas")
+    frame = pandas.DataFrame(rows)
+    for column in FLOAT_COLUMNS & set(frame.columns):  # NaN where a method has none
+        frame[column] = pandas.to_numeric(frame[column]).astype(float)
     frame = frame.drop_duplicates(subset=list(KEY), keep="last")
     frame = frame.sort_values(list(KEY)).reset_index(drop=True)
     config = read_config(path if path.is_dir() else path.parent)

@@ -138,6 +138,7 @@ def _run_task(task: _Task) -> dict:
         "converged": info.get("converged"),
         "translation_gradient_norm_m": info.get("translation_gradient_norm"),
         "rotation_gradient_norm_rad": info.get("rotation_gradient_norm"),
+        "confidence": info.get("confidence"),
         "transformation": np.asarray(transformation).tolist(),
     }
     if info.get("trajectory") is not None:
