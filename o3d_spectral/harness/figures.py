@@ -250,48 +250,92 @@ def _padded(curves: list[list[float]]) -> np.ndarray:
     return np.array([c + [c[-1]] * (length - len(c)) for c in curves], dtype=float)
 
 
-def plot_convergence(frame: pd.DataFrame, method: str, path: Path) -> Path:
-    """Error against iteration for one spectral method (the paper's Fig. 2 and 4).
+#: The convergence figure's columns: curve, scale to the unit shown, axis label.
+_CONVERGENCE_PANELS = (
+    (CURVE_COLUMNS[1], 1e3, "translation error (mm)"),
+    (CURVE_COLUMNS[0], 1.0, "rotation error (deg)"),
+)
+
+
+def _convergence_figure(plt, rows: int):
+    """Empty convergence panels: a row per suite, translation and rotation error (log
+    scale) against iteration."""
+    share = {"sharex": "col"}
+    fig, axes = _figure(plt, rows, 2, (3.6, 2.1), share, wspace=0.8, hspace=0.45)
+    for ax, (_, _, label) in zip(axes.flat, _CONVERGENCE_PANELS * rows, strict=True):
+        _log_axis(ax)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("iteration")
+    return fig, axes
+
+
+def _draw_curves(ax, runs: pd.DataFrame, column: str, scale: float) -> None:
+    """Replace the curves of a convergence panel by those of ``runs``: thin lines for the
+    first :data:`_MAX_CURVES` (green: success, red: failure), the median over all runs in
+    black and over the successful ones in dark green."""
+    LineCollection = require("matplotlib.collections").LineCollection
+    for artist in [*ax.lines, *ax.collections]:
+        artist.remove()
+    ax.relim()  # forget the extent of the removed curves
+    shown = runs.iloc[:_MAX_CURVES]
+    # One collection per panel, not a line per instance: far fewer artists to draw.
+    lines = [
+        np.column_stack([np.arange(len(c)), np.maximum(scale * np.asarray(c), _FLOOR)])
+        for c in shown[column]
+    ]
+    colours = ["tab:green" if s else "tab:red" for s in shown["success"]]
+    ax.add_collection(LineCollection(lines, colors=colours, lw=0.6, alpha=0.5))
+    wins = runs[runs["success"].astype(bool)]
+    for subset, colour, name in ((runs, "k", "median"), (wins, "darkgreen", "median of successes")):
+        if len(subset):
+            median = np.median(scale * _padded(list(subset[column])), axis=0)
+            ax.plot(np.maximum(median, _FLOOR), color=colour, lw=2, label=name)
+
+
+def plot_convergence(frame: pd.DataFrame, paths: dict[str, Path]) -> dict[str, Path]:
+    """Error against iteration, a figure per spectral method (the paper's Fig. 2 and 4).
 
     One row per suite: translation error (mm) and rotation error (deg) of each iterate,
     thin lines for up to 40 instances (green: success, red: failure), the median over all
     instances in black and over the successful ones in dark green.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The run's rows (:func:`~o3d_spectral.harness.records.load_results`).
+    paths : dict of str to Path
+        Where to write the figure of each method.
+
+    Returns
+    -------
+    dict of str to Path
+        ``paths``, once written.
+
+    Notes
+    -----
+    The methods' figures are drawn in turn into one matplotlib figure, its curves replaced
+    each time: its panels, ticks and text layouts are made once, not once per method.
     """
     plt = _pyplot()
-    LineCollection = require("matplotlib.collections").LineCollection
-    runs = frame[(frame["method"] == method) & frame[CURVE_COLUMNS[0]].notna()]
-    suites = suite_order(runs)
-    share = {"sharex": "col"}
-    fig, axes = _figure(plt, len(suites), 2, (3.6, 2.1), share, wspace=0.8, hspace=0.45)
-    panels = [
-        (CURVE_COLUMNS[1], 1e3, "translation error (mm)"),
-        (CURVE_COLUMNS[0], 1.0, "rotation error (deg)"),
-    ]
-    for row, (suite, condition) in enumerate(suites):
-        here = runs[runs["suite"] == suite]
-        for ax, (column, scale, label) in zip(axes[row], panels, strict=True):
-            shown = here.iloc[:_MAX_CURVES]
-            # One collection per panel, not a line per instance: far fewer artists to draw.
-            lines = [
-                np.column_stack([np.arange(len(c)), np.maximum(scale * np.asarray(c), _FLOOR)])
-                for c in shown[column]
-            ]
-            colours = ["tab:green" if s else "tab:red" for s in shown["success"]]
-            ax.add_collection(LineCollection(lines, colors=colours, lw=0.6, alpha=0.5))
+    fig = axes = None
+    for method, path in paths.items():
+        runs = frame[(frame["method"] == method) & frame[CURVE_COLUMNS[0]].notna()]
+        suites = suite_order(runs)
+        if axes is None or len(axes) != len(suites):
+            if fig is not None:
+                plt.close(fig)
+            fig, axes = _convergence_figure(plt, len(suites))
+        for row, (suite, condition) in enumerate(suites):
+            here = runs[runs["suite"] == suite]
+            for ax, (column, scale, _) in zip(axes[row], _CONVERGENCE_PANELS, strict=True):
+                _draw_curves(ax, here, column, scale)
+                _title(ax, f"{method}: {suite_label(suite, condition)}")
+        for ax in axes.flat:
             ax.autoscale_view()
-            wins = here[here["success"].astype(bool)]
-            for subset, colour, name in (
-                (here, "k", "median"),
-                (wins, "darkgreen", "median of successes"),
-            ):
-                if len(subset):
-                    median = np.median(scale * _padded(list(subset[column])), axis=0)
-                    ax.plot(np.maximum(median, _FLOOR), color=colour, lw=2, label=name)
-            _log_axis(ax)
-            ax.set_ylabel(label)
-            _title(ax, f"{method}: {suite_label(suite, condition)}")
-            ax.grid(alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("iteration")
-    axes[0, 0].legend(fontsize=7)
-    return _save(fig, plt, path)
+        axes[0, 0].legend(fontsize=7)
+        fig.savefig(path, dpi=110)
+    if fig is not None:
+        plt.close(fig)
+    return dict(paths)

@@ -121,15 +121,9 @@ def _figures(frame: pd.DataFrame, config: dict, spectral: list[str], out: Path) 
         ),
         ("Time per registration", lambda p: plot_times(frame, p), "time.png"),
     ]
-    plots += [
-        (
-            f"Convergence of {m}",
-            lambda p, m=m: plot_convergence(frame, m, p),
-            f"convergence_{m}.png",
-        )
-        for m in spectral
-    ]
-    return {title: plot(out / name) for title, plot, name in plots}
+    figures = {title: plot(out / name) for title, plot, name in plots}
+    convergence = plot_convergence(frame, {m: out / f"convergence_{m}.png" for m in spectral})
+    return figures | {f"Convergence of {m}": path for m, path in convergence.items()}
 
 
 def _held_out_summary(frame: pd.DataFrame, config: dict) -> Table | None:
