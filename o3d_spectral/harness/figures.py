@@ -2,8 +2,9 @@
 
 Success rate against the initial rotation angle, cumulative error curves, time per
 method, and for each spectral method its convergence curves (error against iteration,
-the paper's Fig. 2 and 4). All errors are the symmetry-aware ones; translation errors are
-measured at the object's centroid (:mod:`o3d_spectral.harness.metrics`).
+the paper's Fig. 2 and 4, drawn by :mod:`~o3d_spectral.harness.convergence_plot`). All
+errors are the symmetry-aware ones; translation errors are measured at the object's
+centroid (:mod:`o3d_spectral.harness.metrics`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness.records import CURVE_COLUMNS
+from o3d_spectral.harness._plotting import (
+    FLOOR,
+    LEGEND_ROOM,
+    figure,
+    log_axis,
+    pyplot,
+    save,
+    title,
+)
+from o3d_spectral.harness.convergence_plot import plot_convergence
 from o3d_spectral.harness.tables import (
     by_suite_and_method,
     method_order,
@@ -34,25 +44,6 @@ __all__ = [
 ]
 
 ANGLE_BINS_DEG = np.arange(0.0, 181.0, 20.0)
-_MAX_CURVES = 40  # instance curves drawn per panel (the median uses all)
-_FLOOR = 1e-3  # smallest error drawn on log axes (deg, mm)
-
-
-def _pyplot():
-    matplotlib = require("matplotlib")
-    matplotlib.use("Agg")
-    return require("matplotlib.pyplot")
-
-
-def _log_axis(ax, which: str = "y") -> None:
-    """A log scale with ticks at the decades only: the minor ticks of a log axis (eight a
-    decade, each with its label and grid line) took most of a report's time."""
-    if which == "y":
-        ax.set_yscale("log")
-        ax.yaxis.set_minor_locator(require("matplotlib.ticker").NullLocator())
-    else:
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_locator(require("matplotlib.ticker").NullLocator())
 
 
 def _styles(frame: pd.DataFrame) -> dict[str, dict[str, str]]:
@@ -64,50 +55,6 @@ def _styles(frame: pd.DataFrame) -> dict[str, dict[str, str]]:
     }
 
 
-#: Room around the panels, inches: left (tick labels and y label), bottom (x label), top
-#: (title), between panels, and on the right for a legend outside the panels.
-_MARGINS = {"left": 0.75, "bottom": 0.6, "top": 0.4, "wspace": 0.55, "hspace": 0.75}
-_LEGEND_ROOM = 2.0
-
-
-def _figure(
-    plt,
-    rows: int,
-    columns: int,
-    panel: tuple[float, float],
-    share: dict[str, bool | str] | None = None,
-    **room: float,
-):
-    """A figure of ``rows x columns`` panels of ``panel`` (width, height) inches, with the
-    margins of :data:`_MARGINS` (overridden by ``room``, plus ``right``) fixed in inches.
-
-    Fixed margins instead of ``tight_layout`` or ``bbox_inches="tight"``: each of those
-    draws the figure once more to measure it, which doubled the time of every plot.
-    ``share``: ``sharex`` and ``sharey`` of ``plt.subplots``; a shared axis labels its
-    ticks on the outer panels only (fewer texts, the costliest part of drawing a panel).
-    """
-    margin = _MARGINS | {"right": 0.25} | room
-    width = margin["left"] + margin["right"] + columns * panel[0]
-    width += (columns - 1) * margin["wspace"]
-    height = margin["bottom"] + margin["top"] + rows * panel[1] + (rows - 1) * margin["hspace"]
-    fig, axes = plt.subplots(rows, columns, figsize=(width, height), squeeze=False, **(share or {}))
-    fig.subplots_adjust(
-        left=margin["left"] / width,
-        right=1 - margin["right"] / width,
-        bottom=margin["bottom"] / height,
-        top=1 - margin["top"] / height,
-        wspace=margin["wspace"] / panel[0],
-        hspace=margin["hspace"] / panel[1],
-    )
-    return fig, axes
-
-
-def _title(ax, text: str) -> None:
-    """Title a panel at a fixed height: without ``y``, matplotlib measures the panel's
-    tick labels at every draw to lift the title over any above the axes (there are none)."""
-    ax.set_title(text, fontsize=10, y=1.0)
-
-
 def _panels(
     frame: pd.DataFrame,
     plt,
@@ -117,17 +64,13 @@ def _panels(
     share: dict[str, bool | str] | None = None,
     **room: float,
 ):
+    """A figure of a column of panels per suite (``rows`` of them), titled by suite in
+    the first row; the figure, its axes and the (suite, condition) pairs."""
     suites = suite_order(frame)
-    fig, axes = _figure(plt, rows, len(suites), (2.9, height), share, **room)
+    fig, axes = figure(plt, rows, len(suites), (2.9, height), share, **room)
     for ax, (suite, condition) in zip(axes[0], suites, strict=True):
-        _title(ax, suite_label(suite, condition))
+        title(ax, suite_label(suite, condition))
     return fig, axes, suites
-
-
-def _save(fig, plt, path: Path) -> Path:
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def _success_by_angle(runs: pd.DataFrame) -> np.ndarray:
@@ -148,11 +91,11 @@ def _success_by_angle(runs: pd.DataFrame) -> np.ndarray:
 
 def plot_success_vs_angle(frame: pd.DataFrame, path: Path) -> Path:
     """Success rate (%) per bin of the initial rotation angle (0-180 degrees, 20-degree bins)."""
-    plt = _pyplot()
+    plt = pyplot()
     cells, empty = by_suite_and_method(frame), frame.iloc[:0]
     styles = _styles(frame)
     share = {"sharey": True}
-    fig, axes, suites = _panels(frame, plt, share=share, right=_LEGEND_ROOM)
+    fig, axes, suites = _panels(frame, plt, share=share, right=LEGEND_ROOM)
     centres = 0.5 * (ANGLE_BINS_DEG[1:] + ANGLE_BINS_DEG[:-1])
     for ax, (suite, _) in zip(axes[0], suites, strict=True):
         for method, style in styles.items():
@@ -165,7 +108,7 @@ def plot_success_vs_angle(frame: pd.DataFrame, path: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("success rate (%)")
     axes[0, -1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    return _save(fig, plt, path)
+    return save(fig, plt, path)
 
 
 def plot_cumulative_errors(
@@ -177,11 +120,11 @@ def plot_cumulative_errors(
     ``thresholds``: the run's success criteria (``max_rotation_deg``,
     ``max_translation_m``), drawn as dashed lines.
     """
-    plt = _pyplot()
+    plt = pyplot()
     cells, empty = by_suite_and_method(frame), frame.iloc[:0]
     styles = _styles(frame)
     share = {"sharey": True}
-    fig, axes, suites = _panels(frame, plt, rows=2, share=share, right=_LEGEND_ROOM)
+    fig, axes, suites = _panels(frame, plt, rows=2, share=share, right=LEGEND_ROOM)
     quantities = [
         ("rotation_error_sym_deg", 1.0, "rotation error (deg)", "max_rotation_deg"),
         ("translation_error_sym_m", 1e3, "translation error (mm)", "max_translation_m"),
@@ -192,17 +135,17 @@ def plot_cumulative_errors(
                 runs = cells.get((suite, method), empty)
                 values = np.sort(scale * runs[column].dropna().to_numpy(dtype=float))
                 share_of_runs = np.arange(1, len(values) + 1) / max(len(runs), 1)
-                x = np.maximum(values, _FLOOR)
+                x = np.maximum(values, FLOOR)
                 ax.step(x, share_of_runs, where="post", label=method, **style)
             if thresholds:
                 ax.axvline(scale * thresholds[key], color="0.4", ls="--", lw=0.8)
-            _log_axis(ax, "x")
+            log_axis(ax, "x")
             ax.set_ylim(0, 1.02)
             ax.set_xlabel(label)
             ax.grid(alpha=0.3)
         axes[row, 0].set_ylabel("share of runs")
     axes[0, -1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    return _save(fig, plt, path)
+    return save(fig, plt, path)
 
 
 def _draw_boxes(ax, data: list[np.ndarray]) -> None:
@@ -228,114 +171,16 @@ def _draw_boxes(ax, data: list[np.ndarray]) -> None:
 
 def plot_times(frame: pd.DataFrame, path: Path) -> Path:
     """Box plots of the wall time per registration, per suite and method (log scale)."""
-    plt = _pyplot()
+    plt = pyplot()
     cells, empty = by_suite_and_method(frame), frame.iloc[:0]
     methods = method_order(frame)
     share = {"sharey": True}
     fig, axes, suites = _panels(frame, plt, share=share, left=1.9)
     for ax, (suite, _) in zip(axes[0], suites, strict=True):
         _draw_boxes(ax, [cells.get((suite, m), empty)["time_s"].to_numpy() for m in methods])
-        _log_axis(ax, "x")
+        log_axis(ax, "x")
         ax.set_xlabel("time per registration (s)")
         ax.grid(alpha=0.3, axis="x")
     axes[0, 0].set_yticks(range(1, len(methods) + 1), methods, fontsize=7)
     axes[0, 0].set_ylim(len(methods) + 0.5, 0.5)  # the first method on top
-    return _save(fig, plt, path)
-
-
-def _padded(curves: list[list[float]]) -> np.ndarray:
-    """Curves of unequal length as rows, each continued with its last value (a run that
-    stopped keeps its final error)."""
-    length = max(len(c) for c in curves)
-    return np.array([c + [c[-1]] * (length - len(c)) for c in curves], dtype=float)
-
-
-#: The convergence figure's columns: curve, scale to the unit shown, axis label.
-_CONVERGENCE_PANELS = (
-    (CURVE_COLUMNS[1], 1e3, "translation error (mm)"),
-    (CURVE_COLUMNS[0], 1.0, "rotation error (deg)"),
-)
-
-
-def _convergence_figure(plt, rows: int):
-    """Empty convergence panels: a row per suite, translation and rotation error (log
-    scale) against iteration."""
-    share = {"sharex": "col"}
-    fig, axes = _figure(plt, rows, 2, (3.6, 2.1), share, wspace=0.8, hspace=0.45)
-    for ax, (_, _, label) in zip(axes.flat, _CONVERGENCE_PANELS * rows, strict=True):
-        _log_axis(ax)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("iteration")
-    return fig, axes
-
-
-def _draw_curves(ax, runs: pd.DataFrame, column: str, scale: float) -> None:
-    """Replace the curves of a convergence panel by those of ``runs``: thin lines for the
-    first :data:`_MAX_CURVES` (green: success, red: failure), the median over all runs in
-    black and over the successful ones in dark green."""
-    LineCollection = require("matplotlib.collections").LineCollection
-    for artist in [*ax.lines, *ax.collections]:
-        artist.remove()
-    ax.relim()  # forget the extent of the removed curves
-    shown = runs.iloc[:_MAX_CURVES]
-    # One collection per panel, not a line per instance: far fewer artists to draw.
-    lines = [
-        np.column_stack([np.arange(len(c)), np.maximum(scale * np.asarray(c), _FLOOR)])
-        for c in shown[column]
-    ]
-    colours = ["tab:green" if s else "tab:red" for s in shown["success"]]
-    ax.add_collection(LineCollection(lines, colors=colours, lw=0.6, alpha=0.5))
-    wins = runs[runs["success"].astype(bool)]
-    for subset, colour, name in ((runs, "k", "median"), (wins, "darkgreen", "median of successes")):
-        if len(subset):
-            median = np.median(scale * _padded(list(subset[column])), axis=0)
-            ax.plot(np.maximum(median, _FLOOR), color=colour, lw=2, label=name)
-
-
-def plot_convergence(frame: pd.DataFrame, paths: dict[str, Path]) -> dict[str, Path]:
-    """Error against iteration, a figure per spectral method (the paper's Fig. 2 and 4).
-
-    One row per suite: translation error (mm) and rotation error (deg) of each iterate,
-    thin lines for up to 40 instances (green: success, red: failure), the median over all
-    instances in black and over the successful ones in dark green.
-
-    Parameters
-    ----------
-    frame : pandas.DataFrame
-        The run's rows (:func:`~o3d_spectral.harness.records.load_results`).
-    paths : dict of str to Path
-        Where to write the figure of each method.
-
-    Returns
-    -------
-    dict of str to Path
-        ``paths``, once written.
-
-    Notes
-    -----
-    The methods' figures are drawn in turn into one matplotlib figure, its curves replaced
-    each time: its panels, ticks and text layouts are made once, not once per method.
-    """
-    plt = _pyplot()
-    fig = axes = None
-    for method, path in paths.items():
-        runs = frame[(frame["method"] == method) & frame[CURVE_COLUMNS[0]].notna()]
-        suites = suite_order(runs)
-        if axes is None or len(axes) != len(suites):
-            if fig is not None:
-                plt.close(fig)
-            fig, axes = _convergence_figure(plt, len(suites))
-        for row, (suite, condition) in enumerate(suites):
-            here = runs[runs["suite"] == suite]
-            for ax, (column, scale, _) in zip(axes[row], _CONVERGENCE_PANELS, strict=True):
-                _draw_curves(ax, here, column, scale)
-                _title(ax, f"{method}: {suite_label(suite, condition)}")
-        for ax in axes.flat:
-            ax.autoscale_view()
-        axes[0, 0].legend(fontsize=7)
-        fig.savefig(path, dpi=110)
-    if fig is not None:
-        plt.close(fig)
-    return dict(paths)
+    return save(fig, plt, path)
