@@ -10,6 +10,7 @@ took five times as long.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -54,29 +55,39 @@ class _Panel:
 def _padded(curves: list[list[float]]) -> np.ndarray:
     """Curves of unequal length as rows, each continued with its last value (a run that
     stopped keeps its final error)."""
-    length = max(len(c) for c in curves)
-    return np.array([c + [c[-1]] * (length - len(c)) for c in curves], dtype=float)
+    lengths = np.array([len(c) for c in curves])
+    values = np.fromiter(itertools.chain.from_iterable(curves), float, lengths.sum())
+    starts = np.cumsum(lengths) - lengths
+    steps = np.minimum(np.arange(lengths.max()), lengths[:, None] - 1)
+    return values[starts[:, None] + steps]
+
+
+def _medians(curves: list[list[float]], success: np.ndarray, scale: float) -> list[tuple]:
+    """The median by iteration over all ``curves`` (black) and over the successful runs'
+    (dark green), each as long as the longest of its curves, as (errors, colour, label)."""
+    padded = scale * _padded(curves)
+    longest_win = max((len(c) for c, won in zip(curves, success, strict=True) if won), default=0)
+    subsets = [(padded, "k", "median")]
+    subsets += [(padded[success, :longest_win], "darkgreen", "median of successes")]
+    return [
+        (np.maximum(np.median(errors, axis=0), FLOOR), colour, name)
+        for errors, colour, name in subsets
+        if len(errors)
+    ]
 
 
 def _panel(runs: pd.DataFrame, column: str, scale: float) -> _Panel:
     """Thin lines for the first :data:`_MAX_CURVES` runs (green: success, red: failure),
     the median over all runs in black and over the successful ones in dark green."""
-    shown = runs.iloc[:_MAX_CURVES]
+    curves = list(runs[column])
+    success = runs["success"].astype(bool).to_numpy()
+    shown = curves[:_MAX_CURVES]
     lines = [
         np.column_stack([np.arange(len(c)), np.maximum(scale * np.asarray(c), FLOOR)])
-        for c in shown[column]
+        for c in shown
     ]
-    colours = ["tab:green" if s else "tab:red" for s in shown["success"]]
-    wins = runs[runs["success"].astype(bool)]
-    medians = [
-        (np.maximum(np.median(scale * _padded(list(subset[column])), axis=0), FLOOR), colour, name)
-        for subset, colour, name in (
-            (runs, "k", "median"),
-            (wins, "darkgreen", "median of successes"),
-        )
-        if len(subset)
-    ]
-    return _Panel(lines, colours, medians)
+    colours = ["tab:green" if won else "tab:red" for won in success[: len(shown)]]
+    return _Panel(lines, colours, _medians(curves, success, scale))
 
 
 def _method_panels(runs: pd.DataFrame, suites: list[tuple[str, str]]) -> list[_Panel]:
@@ -152,8 +163,10 @@ def plot_convergence(frame: pd.DataFrame, paths: dict[str, Path]) -> dict[str, P
     """
     plt = pyplot()
     groups: dict[tuple, dict[str, list[_Panel]]] = {}  # methods by the suites they ran
+    columns = ["method", "suite", "condition", "success", *CURVE_COLUMNS]
+    with_curves = frame.loc[frame[CURVE_COLUMNS[0]].notna(), columns]
     for method in paths:
-        runs = frame[(frame["method"] == method) & frame[CURVE_COLUMNS[0]].notna()]
+        runs = with_curves[with_curves["method"] == method]
         suites = suite_order(runs)
         groups.setdefault(tuple(suites), {})[method] = _method_panels(runs, suites)
     for suites, methods in groups.items():
