@@ -5,9 +5,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from o3d_spectral.harness._optional import require
 
-__all__ = ["DPI", "FLOOR", "LEGEND_ROOM", "figure", "log_axis", "pyplot", "save", "title"]
+__all__ = [
+    "DPI",
+    "FLOOR",
+    "LEGEND_ROOM",
+    "figure",
+    "log_axis",
+    "pyplot",
+    "save",
+    "title",
+    "write_png",
+]
 
 #: Resolution of every plot (pixels per inch).
 DPI = 110
@@ -77,8 +89,19 @@ def title(ax, text: str) -> None:
     ax.set_title(text, fontsize=10, y=1.0)
 
 
+def write_png(fig, path: Path) -> Path:
+    """Write the image of ``fig`` as last drawn to ``path``: a PNG without the alpha
+    channel (the figure is opaque), zlib level 3, which took half the time of
+    ``savefig``'s RGBA at level 6 and makes smaller files."""
+    pixels = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+    image = require("PIL.Image").fromarray(pixels)
+    image.save(path, format="png", compress_level=3, dpi=(fig.dpi, fig.dpi))
+    return path
+
+
 def save(fig, plt, path: Path) -> Path:
-    """Write ``fig`` to ``path`` (PNG) and close it."""
-    fig.savefig(path, dpi=DPI)
+    """Draw ``fig``, write it to ``path`` (PNG, :func:`write_png`) and close it."""
+    fig.canvas.draw()
+    write_png(fig, path)
     plt.close(fig)
     return path

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness._plotting import FLOOR, figure, log_axis, pyplot, title
+from o3d_spectral.harness._plotting import FLOOR, figure, log_axis, pyplot, title, write_png
 from o3d_spectral.harness.records import CURVE_COLUMNS
 from o3d_spectral.harness.tables import suite_label, suite_order
 
@@ -135,8 +135,7 @@ def _draw(fig, axes, background, panels: list[_Panel], titles: list[str], path: 
     drawn.append((axes[0, 0], axes[0, 0].legend(fontsize=7)))
     for ax, artist in drawn:
         ax.draw_artist(artist)
-    image = np.asarray(fig.canvas.buffer_rgba())
-    require("matplotlib.image").imsave(path, image, dpi=fig.dpi)
+    write_png(fig, path)
     for _, artist in drawn:
         artist.remove()
 
