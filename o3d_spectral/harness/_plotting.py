@@ -39,15 +39,27 @@ def pyplot():
     return require("matplotlib.pyplot")
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _decade(value: float, _position: int | None = None) -> str:
+    """A log axis's tick label: ``10⁻³`` at a decade, in plain text (matplotlib's default
+    ``$10^{-3}$`` goes through its TeX parser, whose grammar alone took 0.15 s to build)."""
+    exponent = np.log10(value) if value > 0 else np.nan
+    if np.isfinite(exponent) and exponent == round(exponent):
+        return "10" + str(int(round(exponent))).translate(_SUPERSCRIPT)
+    return f"{value:g}"
+
+
 def log_axis(ax, which: str = "y") -> None:
-    """A log scale with ticks at the decades only: the minor ticks of a log axis (eight a
-    decade, each with its label and grid line) took most of a report's time."""
-    if which == "y":
-        ax.set_yscale("log")
-        ax.yaxis.set_minor_locator(require("matplotlib.ticker").NullLocator())
-    else:
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_locator(require("matplotlib.ticker").NullLocator())
+    """A log scale with ticks and labels (:func:`_decade`) at the decades only: the minor
+    ticks of a log axis (eight a decade, each with its label and grid line) took most of
+    a report's time."""
+    ticker = require("matplotlib.ticker")
+    (ax.set_yscale if which == "y" else ax.set_xscale)("log")
+    axis = ax.yaxis if which == "y" else ax.xaxis
+    axis.set_minor_locator(ticker.NullLocator())
+    axis.set_major_formatter(ticker.FuncFormatter(_decade))
 
 
 def figure(
