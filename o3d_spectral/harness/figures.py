@@ -174,13 +174,14 @@ def plot_times(frame: pd.DataFrame, path: Path) -> Path:
     plt = pyplot()
     cells, empty = by_suite_and_method(frame), frame.iloc[:0]
     methods = method_order(frame)
-    share = {"sharey": True}
-    fig, axes, suites = _panels(frame, plt, share=share, left=1.9)
+    fig, axes, suites = _panels(frame, plt, left=1.9)
     for ax, (suite, _) in zip(axes[0], suites, strict=True):
         _draw_boxes(ax, [cells.get((suite, m), empty)["time_s"].to_numpy() for m in methods])
         log_axis(ax, "x")
         ax.set_xlabel("time per registration (s)")
         ax.grid(alpha=0.3, axis="x")
+        ax.set_ylim(len(methods) + 0.5, 0.5)  # the first method on top
+        # Method names on the first panel only; no y ticks at all on the others.
+        ax.yaxis.set_major_locator(require("matplotlib.ticker").NullLocator())
     axes[0, 0].set_yticks(range(1, len(methods) + 1), methods, fontsize=7)
-    axes[0, 0].set_ylim(len(methods) + 0.5, 0.5)  # the first method on top
     return save(fig, plt, path)
