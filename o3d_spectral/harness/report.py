@@ -149,10 +149,11 @@ def _held_out_summary(frame: pd.DataFrame, config: dict) -> Table | None:
 
 @contextlib.contextmanager
 def _collector_paused() -> Iterator[None]:
-    """Pause Python's cyclic garbage collector (reference counting still frees memory), as
-    it was again on exit: the plots make hundreds of thousands of short-lived objects, each
-    few hundred starting a pass over every object alive, the run's rows among them, which
-    took a sixth of a report's time. Left for the end: the cycles of the closed figures."""
+    """Pause Python's cyclic garbage collector while a report is made, and restore it after
+    (reference counting frees memory as usual). Drawing makes hundreds of thousands of
+    short-lived objects, and every few hundred of them the collector scanned every live
+    object, the run's rows among them: a sixth of a report's time. The reference cycles of
+    the closed figures are collected after."""
     enabled = gc.isenabled()
     gc.disable()
     try:
