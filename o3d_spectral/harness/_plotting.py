@@ -46,7 +46,7 @@ def _decade(value: float, _position: int | None = None) -> str:
     """A log axis's tick label: ``10⁻³`` at a decade, in plain text (matplotlib's default
     ``$10^{-3}$`` goes through its TeX parser, whose grammar alone took 0.15 s to build)."""
     exponent = np.log10(value) if value > 0 else np.nan
-    if np.isfinite(exponent) and exponent == round(exponent):
+    if np.isfinite(exponent) and abs(exponent - round(exponent)) < 1e-9:
         return "10" + str(int(round(exponent))).translate(_SUPERSCRIPT)
     return f"{value:g}"
 
