@@ -99,3 +99,11 @@ def test_convergence_figures_of_methods_on_other_suites_have_their_own_rows(tmp_
     assert plot_convergence(frame, paths) == paths
     with Image.open(paths["spectral"]) as two, Image.open(paths["spectral_b"]) as one:
         assert two.size[0] == one.size[0] and two.size[1] > one.size[1]
+
+
+def test_no_spectral_method_no_convergence_figure():
+    frame = _frame(np.random.default_rng(3), methods=("icp",))
+    assert (
+        plot_convergence(frame.drop(columns=["curve_rotation_deg", "curve_translation_m"]), {})
+        == {}
+    )

@@ -160,6 +160,8 @@ def plot_convergence(frame: pd.DataFrame, paths: dict[str, Path]) -> dict[str, P
     dict of str to Path
         ``paths``, once written.
     """
+    if not paths:  # a run without spectral methods has no curve columns
+        return {}
     plt = pyplot()
     groups: dict[tuple, dict[str, list[_Panel]]] = {}  # methods by the suites they ran
     columns = ["method", "suite", "condition", "success", *CURVE_COLUMNS]
