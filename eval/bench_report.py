@@ -1,6 +1,6 @@
 """Benchmark: wall time of ``o3d-spectral report`` on the full benchmark's number of rows.
 
-Writes a synthetic run folder (``fake_run``: 4 suites x 240 instances x 10 methods, the
+Writes a synthetic run folder (``fake_run``: 4 suites x 240 instances x 12 methods, the
 columns ``eval`` writes, convergence curves of 10-120 iterations for the spectral
 methods, one session) and times ``make_report`` on it, with a profile of the slowest
 calls when ``--profile`` is given. The rows are random, not results.
@@ -31,6 +31,8 @@ METHODS = (
     "fpfh_ransac",
     "fgr",
     "fpfh_ransac_tuned",
+    "kiss_matcher",
+    "small_gicp",
 )
 OBJECTS = ("mug", "mustard_bottle", "bowl", "banana", "scissors", "power_drill")
 

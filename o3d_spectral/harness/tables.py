@@ -71,7 +71,7 @@ def method_order(frame: pd.DataFrame) -> list[str]:
     """The methods of ``frame``: in the order the run named them (``frame.attrs["methods"]``,
     set by :func:`~o3d_spectral.harness.records.load_results`), else the registry's, then
     any others by name."""
-    present = list(dict.fromkeys(frame["method"]))
+    present = list(frame["method"].unique())  # in order of appearance
     order = frame.attrs.get("methods")
     if not order:  # the registry imports Open3D: only when the run does not say
         from o3d_spectral.harness.methods import method_names
@@ -83,7 +83,8 @@ def method_order(frame: pd.DataFrame) -> list[str]:
 
 def suite_order(frame: pd.DataFrame) -> list[tuple[str, str]]:
     """(suite, condition) pairs: C-1, C-2, C-3 first, then the others by name."""
-    pairs = frame[["suite", "condition"]].drop_duplicates().itertuples(index=False)
+    # A set of the column pairs: a third of the time of DataFrame.drop_duplicates.
+    pairs = set(zip(frame["suite"].to_numpy(), frame["condition"].to_numpy(), strict=True))
     rank = {condition: k for k, condition in enumerate(PAPER_CONDITIONS)}
     return sorted(pairs, key=lambda p: (rank.get(p[1], len(rank)), p[0]))
 
@@ -146,7 +147,9 @@ def summary_table(frame: pd.DataFrame) -> Table:
             runs = cells.get((suite, method))
             if runs is None:
                 continue
-            wins = runs[runs["success"].astype(bool)]
+            success = runs["success"].astype(bool)
+            # The successes' two error columns only, not every column of their rows.
+            wins = runs.loc[success, ["rotation_error_sym_deg", "translation_error_sym_m"]]
             failed = runs["error"].notna().sum() if "error" in runs else 0
             open_view = _flagged(runs).sum()
             rows.append(
@@ -154,7 +157,7 @@ def summary_table(frame: pd.DataFrame) -> Table:
                     "suite": suite_label(suite, condition),
                     "method": method,
                     "n": len(runs),
-                    "success (%)": runs["success"].astype(bool).mean(),
+                    "success (%)": success.mean(),
                     "rotation error (deg)": wins["rotation_error_sym_deg"].median(),
                     "translation error (mm)": 1e3 * wins["translation_error_sym_m"].median(),
                     "median time (s)": runs["time_s"].median(),
