@@ -20,6 +20,7 @@ import open3d as o3d
 import pytest
 from scipy.spatial import cKDTree
 
+from o3d_spectral import so3
 from o3d_spectral.harness import real
 from o3d_spectral.harness.real import GROUPS, load_cases, randomly_rotated
 
@@ -205,3 +206,27 @@ def test_rotated_cases_are_seeded_by_name():
     assert real.case_errors(case.T_gt, case) == (pytest.approx(0.0, abs=1e-4),
                                                  pytest.approx(0.0, abs=1e-9))
     assert real.is_success(4.9, 0.0099) and not real.is_success(5.0, 0.0)
+
+
+@pytest.mark.parametrize("name", real.YCBV_CLASSES)
+def test_ycbv_symmetries_map_the_model_onto_itself(name):
+    """The groups recorded for the YCB meshes, found on the YCB-Video model clouds: each
+    element moves the model's points onto the model (median within 2 mm, about the
+    points' spacing), and a turned case scores the truth times any element as exact."""
+    symmetry = real.ycbv_symmetry(name)
+    assert len(symmetry.discrete) == {"009_gelatin_box": 4, "025_mug": 1,
+                                      "061_foam_brick": 8}[name]
+    case = next(c for c in CASES if c.name == f"ycbv_crop_{name}")
+    points = np.asarray(case.source.points)
+    tree = cKDTree(points)
+    for element in symmetry.discrete:
+        moved = points @ element[:3, :3].T + element[:3, 3]
+        assert np.median(tree.query(moved)[0]) < 0.002
+    turned, M = randomly_rotated(case, seed=11)
+    for element in turned.symmetry.discrete:
+        rotation, translation = real.case_errors(turned.T_gt @ element, turned)
+        assert rotation < 1e-4 and translation < 1e-6  # rounding of 4x4 products
+    # A turn that is no symmetry (21 degrees about a generic axis) is still an error.
+    off = turned.T_gt @ so3.about_pivot(so3.exp(np.array([0.3, 0.2, 0.1])), np.zeros(3),
+                                        np.asarray(turned.source.points).mean(axis=0))
+    assert real.case_errors(off, turned)[0] > 5.0

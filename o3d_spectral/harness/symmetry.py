@@ -27,6 +27,7 @@ __all__ = [
     "model_symmetry",
     "refine_axis",
     "surface_moments",
+    "surface_symmetry",
 ]
 
 
@@ -216,13 +217,9 @@ def _nearest_point(directions: list[np.ndarray], points: list[np.ndarray]) -> np
 def model_symmetry(name: str) -> Symmetry:
     """Symmetry group of the bundled model ``name``, in the mesh's own frame.
 
-    The kinds of symmetry per model are listed in ``docs/suites.md``. Each axis starts
-    as a principal axis of the mesh surface (:func:`surface_moments`) and is refined by
-    :func:`refine_axis`: the principal axes of a real scan are a few degrees off its
-    symmetry axes wherever a detail (a lid, a pull tab) is not symmetric, and are
-    arbitrary in a square section. The refined axes are made orthogonal in the order
-    continuous first, then generators; their common point is the least-squares nearest
-    point to the refined axes. Models without a symmetry get the trivial group.
+    The kinds of symmetry per model are listed in ``docs/suites.md``; models without a
+    symmetry get the trivial group. See :func:`surface_symmetry` for how the axes are
+    found.
     """
     spec = _TABLE.get(name)
     if spec is None:
@@ -230,7 +227,33 @@ def model_symmetry(name: str) -> Symmetry:
         return Symmetry()
     mesh = load_model(name)
     center, principal = surface_moments(mesh)
-    cloud = _vertex_cloud(mesh)
+    return surface_symmetry(_vertex_cloud(mesh), name, center, principal)
+
+
+def surface_symmetry(
+    cloud: o3d.geometry.PointCloud, name: str, center: np.ndarray, principal: np.ndarray
+) -> Symmetry:
+    """The symmetry group recorded for the object ``name``, found on a surface of it.
+
+    Each axis starts as a principal axis of the surface (``principal``: columns by
+    ascending second moment, about ``center``) and is refined by :func:`refine_axis`: the
+    principal axes of a real scan are a few degrees off its symmetry axes wherever a
+    detail (a lid, a pull tab) is not symmetric, and are arbitrary in a square section.
+    The refined axes are made orthogonal in the order continuous first, then generators;
+    their common point is the least-squares nearest point to the refined axes.
+
+    Parameters
+    ----------
+    cloud : open3d.geometry.PointCloud
+        Points of the object's surface with normals (m), in the frame wanted.
+    name : str
+        A bundled model's name (the trivial group for names without a symmetry).
+    center : ndarray, shape (3,)
+    principal : ndarray, shape (3, 3)
+    """
+    spec = _TABLE.get(name)
+    if spec is None:
+        return Symmetry()
     probes = {i: np.deg2rad(angle) for i, angle in spec["generators"]}
     if spec["continuous"] is not None:
         probes = {spec["continuous"]: np.deg2rad(_CONTINUOUS_PROBE), **probes}
