@@ -14,9 +14,10 @@ group's voxel size (``real.VOXEL_SIZES``). Normal modes (``real.with_normals``):
   (``KDTreeSearchParamHybrid(2 voxels, 30)``) inside the timed call.
 
 Success: rotation error < 5 deg and translation error at the source centroid < 1 cm
-(``real.is_success``). Writes ``rows.csv`` (one row per case, rotation, mode and method,
-with the spectral call's ``confidence`` and warnings), ``summary.csv`` and ``summary.md``
-(success and median time per group and mode) to ``--out``.
+(``real.is_success``, symmetry-aware). Writes ``rows.csv`` (one row per case, rotation,
+mode and method, with the estimate and the spectral call's ``confidence`` and warnings),
+``summary.csv`` and ``summary.md`` (success and median time per group and mode) to
+``--out``.
 
 Usage: python eval/bench_real.py --out out/bench_real [--rotations 5] [--workers 2]
        [--groups dragon_24 ...] [--modes oriented unoriented none]
@@ -91,7 +92,9 @@ def run(task: tuple[str, int, str]) -> list[dict]:
         rows.append({"group": case.group, "case": case.name, "rotation": r, "mode": mode,
                      "method": method, "seconds": seconds, "rotation_error_deg": rotation,
                      "translation_error_m": translation,
-                     "success": real.is_success(rotation, translation)} | info)
+                     "success": real.is_success(rotation, translation),
+                     "transformation": " ".join(f"{x:.9g}" for x in np.ravel(transformation))}
+                    | info)
     return rows
 
 

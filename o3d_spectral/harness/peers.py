@@ -54,7 +54,10 @@ SMALL_GICP = {
 }
 
 #: The grid ``eval/tune_fpfh.py`` searches (radii in voxels).
-FPFH_TUNING_GRID = {"feature_radius_voxels": (2.5, 3.5, 5.0), "normal_radius_voxels": (1.5, 2.0)}
+FPFH_TUNING_GRID = {
+    "feature_radius_voxels": (1.5, 2.0, 2.5, 3.5, 5.0),
+    "normal_radius_voxels": (1.0, 1.5, 2.0),
+}
 
 #: The tuned features: the tutorial's with the radii ``eval/tune_fpfh.py`` chose.
 #: Provisional until the tuning split of the full suites is run (see docs/results.md).
