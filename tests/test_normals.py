@@ -156,3 +156,19 @@ def test_a_plane_and_a_run_cut_short_each_log_a_warning(caplog):
                                                     criteria=short)
     assert not result.converged
     assert any("max_iteration=1" in message for message in caplog.messages)
+
+
+@pytest.mark.parametrize("angle", [0, 72, 144])
+def test_a_scan_whose_frame_origin_lies_beside_it_faces_its_scanner(angle):
+    """The dragon scans' frames have their origin just below the dragon: from there a
+    scan taken from +z still passes the depth-map test, and turning its normals towards
+    the origin put 84% of them inside out (scan 72). Its view's axis is far from the
+    origin's direction, so the scan is oriented as a view (towards +z, its scanner)."""
+    from o3d_spectral.harness.real import DRAGON_SENSOR, real_dir
+
+    scan = o3d.io.read_point_cloud(str(real_dir() / "dragon" / f"dragonStandRight_{angle}.ply"))
+    prepared = prepare(as_arrays(scan), 0.005)
+    rays = np.asarray(DRAGON_SENSOR) - prepared.normal_points
+    assert np.mean(np.einsum("ij,ij->i", prepared.normals, rays) > 0.0) >= 0.99
+    assert prepared.reading.orientation == "hemisphere"
+    assert prepared.reading.view is not None
