@@ -1,9 +1,10 @@
 """Choose FPFH-RANSAC's feature and normal radii on the tuning split, for ``fpfh_ransac_tuned``.
 
 Runs the tutorial's FPFH-RANSAC and refinement (``o3d_spectral.harness.peers``) with each
-pair of the grid ``FPFH_TUNING_GRID`` (feature radius {2.5, 3.5, 5} and normal radius
-{1.5, 2} voxels) on the instances of the tuning split only (index % 4 == 0 of each suite;
-``fpfh_ransac_tuned`` is then run and reported on the others), one thread per worker, each
+pair of the grid ``FPFH_TUNING_GRID`` (feature radius {1.5, 2, 2.5, 3.5, 5} and normal
+radius {1, 1.5, 2} voxels) on the instances of the tuning split only (index % 4 == 0 of
+each suite; ``fpfh_ransac_tuned`` is then run and reported on the others), one thread per
+worker, each
 registration seeded as the runner seeds ``fpfh_ransac_tuned``. Prints the success rate per
 suite and overall for each pair, and the best pair (most successes, then the lower median
 time). Copy it into ``TUNED_FPFH`` in o3d_spectral/harness/peers.py.
