@@ -49,8 +49,9 @@ def centred_option(cloud: CloudOption, c: NDArray[np.float64]) -> CloudOption:
     """``cloud`` with its sensor positions moved by ``-c`` ("auto" stays "auto": the
     stepper is told where the caller's origin went)."""
     changes = {}
-    if cloud.camera_location is not None:
-        changes["camera_location"] = tuple(np.asarray(cloud.camera_location) - c)
+    for name in ("camera_location", "source_camera_location"):
+        if getattr(cloud, name) is not None:
+            changes[name] = tuple(np.asarray(getattr(cloud, name)) - c)
     if cloud.target_viewpoint is not None and not isinstance(cloud.target_viewpoint, str):
         changes["target_viewpoint"] = tuple(np.asarray(cloud.target_viewpoint) - c)
     return dataclasses.replace(cloud, **changes)

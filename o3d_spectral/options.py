@@ -135,23 +135,31 @@ class CloudOption:
         Search radius (metres) for normals estimated when a cloud has none;
         ``2.5 * voxel_size`` when None.
     camera_location : tuple of 3 float or None
-        Where the sensor was (metres, in the clouds' frame), to orient estimated normals.
+        Where the sensor was (metres, in the clouds' frame), to orient normals estimated
+        (or oriented again) for the target, and for the source unless
+        ``source_camera_location`` is given.
+    source_camera_location : tuple of 3 float or None
+        Where the source's sensor was (metres, source frame), when it differs from the
+        target's (two scans from two places).
     target_viewpoint : "auto", tuple of 3 float, or None
         Where the sensor that saw the target was (metres, target frame). When set, only
         the source points whose normals face it at the current pose take part (back-face
         culling), so that the back of a model is not matched against a one-sided scan.
         ``"auto"``: the origin, when at least 90% of the target's normals face it (a
-        single view in its sensor's frame); None: never cull.
+        single view in its sensor's frame), else far along the direction of a view
+        recognised from its normals and depth (:func:`o3d_spectral.normals.view_direction`),
+        else none; None: never cull.
     """
 
     normal_radius: float | None = None
     camera_location: tuple[float, float, float] | None = None
     target_viewpoint: str | tuple[float, float, float] | None = "auto"
+    source_camera_location: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         check_number("normal_radius", self.normal_radius, low=0.0, low_open=True, optional=True)
-        object.__setattr__(self, "camera_location", check_point(
-            "camera_location", self.camera_location))
+        for name in ("camera_location", "source_camera_location"):
+            object.__setattr__(self, name, check_point(name, getattr(self, name)))
         if isinstance(self.target_viewpoint, str):
             check_choice("target_viewpoint", self.target_viewpoint, ("auto",))
         else:

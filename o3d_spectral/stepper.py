@@ -134,7 +134,8 @@ class SpectralStepper:
         """Number of EGI smoothing levels (``option.egi_smoothing``)."""
         return len(self.option.egi_smoothing)
 
-    def _prepare(self, cloud: object, name: str) -> PreparedCloud:
+    def _prepare(self, cloud: object, name: str, camera: ArrayLike | None = None
+                 ) -> PreparedCloud:
         arrays = as_arrays(cloud, name)
         extent = float(np.max(np.ptp(arrays.points, axis=0)))
         if extent < 4 * self.voxel_size:
@@ -144,7 +145,8 @@ class SpectralStepper:
             )
         return prepare(
             arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
-            normal_radius=self.cloud.normal_radius, camera_location=self.cloud.camera_location,
+            normal_radius=self.cloud.normal_radius,
+            camera_location=self.cloud.camera_location if camera is None else camera,
             origin=self.frame_origin, name=name,
         )
 
@@ -189,7 +191,7 @@ class SpectralStepper:
             Rigid transform applied after preparation (normals are estimated in the
             cloud's own frame first).
         """
-        prepared = self._prepare(cloud, name)
+        prepared = self._prepare(cloud, name, self.cloud.source_camera_location)
         points, point_normals, normals = prepared.points, prepared.point_normals, prepared.normals
         if transformation is not None:
             M = np.asarray(transformation, dtype=np.float64)

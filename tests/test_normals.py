@@ -172,3 +172,17 @@ def test_a_scan_whose_frame_origin_lies_beside_it_faces_its_scanner(angle):
     assert np.mean(np.einsum("ij,ij->i", prepared.normals, rays) > 0.0) >= 0.99
     assert prepared.reading.orientation == "hemisphere"
     assert prepared.reading.view is not None
+
+
+def test_each_cloud_can_name_its_own_sensor():
+    """Two scans from two places: the source's sensor (source frame) orients the
+    source's estimated normals, the target's the target's."""
+    case = load_cases(["dragon_24"])[0]
+    cloud = o3d_spectral.CloudOption(camera_location=(0.0, 0.0, 10.0),
+                                     source_camera_location=(0.0, 0.0, -10.0))
+    stepper = o3d_spectral.SpectralStepper(case.target, 0.005, cloud=cloud)
+    moving = stepper.moving(case.source)
+    assert stepper.target_reading.orientation == moving.reading.orientation == "camera"
+    assert stepper.target_reading.view[2] > 0.9 and moving.reading.view[2] < -0.9
+    with pytest.raises(ValueError, match="source_camera_location"):
+        o3d_spectral.CloudOption(source_camera_location=(0.0, np.nan, 1.0))

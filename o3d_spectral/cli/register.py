@@ -34,12 +34,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print a JSON object instead")
     parser.add_argument(
         "--camera-location", type=float, nargs=3, metavar=("X", "Y", "Z"),
-        help="where the sensor was (metres), to orient normals estimated for a cloud without",
+        help="where the sensor was (metres), to orient the normals estimated (or oriented "
+        "again) for the target, and for the source unless --source-camera-location",
+    )
+    parser.add_argument(
+        "--source-camera-location", type=float, nargs=3, metavar=("X", "Y", "Z"),
+        help="where the source's sensor was (metres, source frame), when not the target's",
     )
     parser.add_argument(
         "--target-viewpoint", default="auto", metavar="auto|none|X,Y,Z",
         help="where the target's sensor was (metres, target frame) when it is a single view; "
-        "'auto' (default): the origin, when the target's normals face it; 'none': a model",
+        "'auto' (default): the origin when the target's normals face it, else a view "
+        "recognised from its normals and depth; 'none': a model",
     )
     parser.add_argument("--save", type=Path, metavar="FILE",
                         help="write the source moved by the result (any format Open3D writes)")
@@ -110,6 +116,12 @@ def _viewpoint(text: str) -> str | tuple[float, ...] | None:
     return point
 
 
+def _reading(reading) -> dict:
+    """A CloudReading as JSON values."""
+    view = None if reading.view is None else np.asarray(reading.view).tolist()
+    return {"from": reading.normals_from, "orientation": reading.orientation, "view": view}
+
+
 def run(args: argparse.Namespace) -> int:
     import open3d as o3d
 
@@ -121,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
     cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
-                                     target_viewpoint=_viewpoint(args.target_viewpoint))
+                                     target_viewpoint=_viewpoint(args.target_viewpoint),
+                                     source_camera_location=args.source_camera_location)
     if init is not None:
         result = o3d_spectral.registration_spectral(
             source, target, args.voxel_size, init, option, criteria, cloud=cloud
@@ -141,6 +154,11 @@ def run(args: argparse.Namespace) -> int:
         "num_iterations": result.num_iterations,
         "run_time": result.run_time,
         "confidence": result.confidence,
+        "source_normals": _reading(result.source_reading),
+        "target_normals": _reading(result.target_reading),
+        "target_viewpoint": None if result.target_viewpoint is None
+        else result.target_viewpoint.tolist(),
+        "warnings": result.warnings,
     }
     if args.save:
         moved = o3d.geometry.PointCloud(source).transform(result.transformation)
