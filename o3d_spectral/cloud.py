@@ -13,7 +13,13 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from .normals import SIGN_DISAGREEMENT, orient, sign_disagreement, view_direction
+from .normals import (
+    SIGN_DISAGREEMENT,
+    VIEW_SHARE,
+    orient,
+    sign_disagreement,
+    view_direction,
+)
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
@@ -188,8 +194,9 @@ class CloudReading:
         normals used as given.
     view : ndarray, shape (3,), or None
         Unit direction towards the sensor when the normals say the cloud is a single
-        view (:func:`o3d_spectral.normals.view_direction`), in the cloud's frame; None
-        otherwise.
+        view, in the cloud's frame: towards the frame's origin when its normals face it
+        (a view in its sensor's frame), else :func:`o3d_spectral.normals.view_direction`;
+        None otherwise.
     sign_disagreement : float or None
         For given normals: the share of neighbours whose normals point to opposite sides
         (:func:`o3d_spectral.normals.sign_disagreement`).
@@ -352,6 +359,12 @@ def prepare(
         keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
     unit, where = normals[keep] / length[keep, None], normal_points[keep].copy()
     flatness = float(np.linalg.norm(unit.mean(axis=0)))
-    view = view_direction(where, unit, voxel_size)
+    sensor = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
+    toward = sensor - where.mean(axis=0)
+    facing = np.mean(np.einsum("ij,ij->i", unit, sensor - where) > 0.0) >= VIEW_SHARE
+    if facing and np.linalg.norm(toward) > voxel_size:  # seen from the frame's origin
+        view = toward / np.linalg.norm(toward)
+    else:  # search (0.07 s on a view)
+        view = view_direction(where, unit, voxel_size)
     reading = CloudReading(normals_from, rule, view, disagreement, flatness)
     return PreparedCloud(points, point_normals, unit, where, reading)
