@@ -3,7 +3,7 @@ with the clouds' normals given three ways (issue 18).
 
 Cases (``o3d_spectral.harness.real``): the dragon scan pairs 24 / 48 / 72 degrees apart
 and the YCB-Video models against their crop and the whole frame, each from
-``--rotations`` seeded random rotations of the source (``real.rotated_cases``), at the
+``--rotations`` seeded random rotations of the source (``real.rotation_seed``), at the
 group's voxel size (``real.VOXEL_SIZES``). Normal modes (``real.with_normals``):
 ``oriented`` (towards each scan's sensor, models outward), ``unoriented`` (Open3D's
 ``estimate_normals()`` alone) and ``none``.
@@ -77,10 +77,9 @@ def run(task: tuple[str, int, str]) -> list[dict]:
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     name, r, mode = task
     group, case_name = name.split("/")
-    turned, motion, seed = next(
-        (c, M, s) for c, M, s, k in real.rotated_cases([group], r + 1)
-        if c.name == case_name and k == r
-    )
+    seed = real.rotation_seed(case_name, r)
+    original = next(c for c in real.load_cases([group]) if c.name == case_name)
+    turned, motion = real.randomly_rotated(original, seed)
     case = real.with_normals(turned, mode, motion)
     voxel = real.VOXEL_SIZES[case.group]
     rows = []

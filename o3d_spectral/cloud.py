@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .normals import (
     SIGN_DISAGREEMENT,
-    VIEW_SHARE,
+    faces,
     orient,
     sign_disagreement,
     view_direction,
@@ -361,8 +361,7 @@ def prepare(
     flatness = float(np.linalg.norm(unit.mean(axis=0)))
     sensor = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
     toward = sensor - where.mean(axis=0)
-    facing = np.mean(np.einsum("ij,ij->i", unit, sensor - where) > 0.0) >= VIEW_SHARE
-    if facing and np.linalg.norm(toward) > voxel_size:  # seen from the frame's origin
+    if faces(where, unit, sensor) and np.linalg.norm(toward) > voxel_size:  # seen from there
         view = toward / np.linalg.norm(toward)
     else:  # search (0.07 s on a view)
         view = view_direction(where, unit, voxel_size)

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 __all__ = [
     "SIGN_DISAGREEMENT", "VIEW_SHARE", "VIEW_MEAN", "is_depth_map", "is_depth_map_along",
-    "sign_disagreement", "sensor_direction",
+    "sign_disagreement", "sensor_direction", "faces",
     "orient", "view_direction", "sensor_position",
 ]
 
@@ -252,18 +252,18 @@ def orient(
     origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
     outside = np.any(points.min(axis=0) > origin) or np.any(points.max(axis=0) < origin)
     if camera_location is not None:
-        return _towards(points, normals, camera_location), "camera"
+        return _turned_to_face(normals, np.asarray(camera_location) - points), "camera"
     axis = sensor_direction(points, normals, voxel_size)
     if outside and is_depth_map(points, origin, voxel_size):
-        toward = _towards(points, normals, origin)  # a scan in its sensor's frame, unless
-        split = sign_disagreement(points, toward) > SIGN_DISAGREEMENT  # that splits it
-        ray = (origin - points.mean(axis=0)) / np.linalg.norm(origin - points.mean(axis=0))
-        aside = axis is not None and abs(ray @ axis) < np.cos(np.deg2rad(45.0))
+        toward = _turned_to_face(normals, origin - points)  # a scan in its sensor's frame,
+        split = sign_disagreement(points, toward) > SIGN_DISAGREEMENT  # unless that splits
+        ray = origin - points.mean(axis=0)  # it or the origin is off the view's axis
+        off_axis = np.cos(np.deg2rad(45.0)) * np.linalg.norm(ray)
+        aside = axis is not None and abs(ray @ axis) < off_axis
         if not (split or aside):
             return toward, "sensor frame"
     if axis is not None:  # one view, in another frame
-        oriented = np.where((normals @ axis < 0.0)[:, None], -normals, normals)
-        rule = "hemisphere"
+        oriented, rule = _turned_to_face(normals, axis), "hemisphere"
     else:
         oriented, rule = _propagated(points, normals), "surface"
     if _outward_share(points, oriented) < 0.0:
@@ -277,11 +277,20 @@ def _outward_share(points: NDArray[np.float64], normals: NDArray[np.float64]) ->
     return float(np.mean(np.einsum("ij,ij->i", normals, points - points.mean(axis=0))))
 
 
-def _towards(points: NDArray[np.float64], normals: NDArray[np.float64], place: ArrayLike
-             ) -> NDArray[np.float64]:
-    """The normals turned to face ``place`` (metres, shape (3,))."""
-    rays = np.asarray(place, dtype=np.float64) - points
-    return np.where((np.einsum("ij,ij->i", normals, rays) < 0.0)[:, None], -normals, normals)
+def _turned_to_face(normals: NDArray[np.float64], reference: ArrayLike) -> NDArray[np.float64]:
+    """Each normal (N, 3) with the sign that makes its dot product with ``reference``
+    (shape (3,) or (N, 3)) non-negative."""
+    dots = np.einsum("ij,ij->i", normals, np.broadcast_to(reference, normals.shape))
+    return np.where((dots < 0.0)[:, None], -normals, normals)
+
+
+def faces(points: ArrayLike, normals: ArrayLike, place: ArrayLike) -> bool:
+    """Whether at least :data:`VIEW_SHARE` of the (non-zero) ``normals`` (N, 3) at
+    ``points`` (metres) face ``place`` (metres, shape (3,)): a view seen from there."""
+    n = np.asarray(normals, dtype=np.float64)
+    usable = np.any(n != 0.0, axis=1)
+    rays = np.asarray(place, dtype=np.float64) - np.asarray(points, dtype=np.float64)
+    return bool(np.mean(np.einsum("ij,ij->i", n, rays)[usable] > 0.0) >= VIEW_SHARE)
 
 
 def _propagated(points: NDArray[np.float64], normals: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -305,8 +314,7 @@ def _propagated(points: NDArray[np.float64], normals: NDArray[np.float64]) -> ND
         coarse.orient_normals_consistent_tangent_plane(10)
         _, nearest = cKDTree(np.asarray(coarse.points)).query(centred)
         reference = np.asarray(coarse.normals)[nearest]
-    agree = np.einsum("ij,ij->i", normals, reference) >= 0.0
-    return np.where(agree[:, None], normals, -normals)
+    return _turned_to_face(normals, reference)
 
 
 def view_direction(
@@ -368,9 +376,7 @@ def sensor_position(
     view : ndarray, shape (3,), or None
     origin : ndarray, shape (3,)
     """
-    has_normal = np.any(point_normals != 0.0, axis=1)
-    toward = np.einsum("ij,ij->i", point_normals, origin - points) > 0.0
-    if toward[has_normal].mean() >= VIEW_SHARE:
+    if faces(points, point_normals, origin):
         return origin
     if view is None:
         return None

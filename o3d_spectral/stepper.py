@@ -204,8 +204,7 @@ class SpectralStepper:
         B = self.option.bandwidth
         table = None
         fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
-        culled = self.viewpoint is not None and reading.view is None
-        if culled and not self.option.egi_binned and fits:
+        if self._culls(reading) and not self.option.egi_binned and fits:
             table = harmonics_table(point_normals, B)
         return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table,
                            reading)
@@ -214,7 +213,11 @@ class SpectralStepper:
         """Whether the moving cloud is matched as the fixed cloud's sensor would see it:
         the fixed cloud is a single view (:attr:`viewpoint`) and the moving cloud is not
         (two views each miss what the other sees: neither is culled)."""
-        return self.viewpoint is not None and moving.reading.view is None
+        return self._culls(moving.reading)
+
+    def _culls(self, reading: CloudReading) -> bool:
+        """:meth:`sees` for a moving cloud read as ``reading``."""
+        return self.viewpoint is not None and reading.view is None
 
     def focused(self, near: ArrayLike, radius: float) -> SpectralStepper:
         """This stepper with the fixed EGI made only of the fixed cloud's normals within

@@ -201,6 +201,7 @@ def test_rotated_cases_are_seeded_by_name():
     first = [(c.name, seed, r) for c, _, seed, r in real.rotated_cases(["ycbv_crop"], 2)]
     again = [(c.name, seed, r) for c, _, seed, r in real.rotated_cases(["ycbv_crop"], 2)]
     assert first == again and len(first) == 6 and len({seed for _, seed, _ in first}) == 6
+    assert all(seed == real.rotation_seed(name, r) for name, seed, r in first)
     case, M, seed, _ = next(real.rotated_cases(["ycbv_crop"], 1))
     np.testing.assert_array_equal(M, randomly_rotated(load_cases(["ycbv_crop"])[0], seed)[1])
     assert real.case_errors(case.T_gt, case) == (pytest.approx(0.0, abs=1e-4),

@@ -48,6 +48,7 @@ __all__ = [
     "with_normals",
     "VOXEL_SIZES",
     "rotated_cases",
+    "rotation_seed",
     "case_errors",
     "is_success",
     "ycbv_symmetry",
@@ -281,14 +282,20 @@ def rotated_cases(
     """Every case of ``groups`` from ``rotations`` seeded random rotations of its source.
 
     Yields ``(case, M, seed, r)``: the case turned by :func:`randomly_rotated` with the
-    seed ``crc32("<name>/<r>")`` (the same across runs and machines), its motion ``M``,
+    seed :func:`rotation_seed`, its motion ``M``,
     the seed and ``r`` in ``range(rotations)``.
     """
     for case in load_cases(groups):
         for r in range(rotations):
-            seed = zlib.crc32(f"{case.name}/{r}".encode()) & 0x7FFFFFFF
+            seed = rotation_seed(case.name, r)
             turned, motion = randomly_rotated(case, seed)
             yield turned, motion, seed, r
+
+
+def rotation_seed(name: str, r: int) -> int:
+    """The seed of a case's ``r``-th random rotation: ``crc32("<name>/<r>")`` (31 bits),
+    the same across runs and machines."""
+    return zlib.crc32(f"{name}/{r}".encode()) & 0x7FFFFFFF
 
 
 def case_errors(transformation: np.ndarray, case: RealCase) -> tuple[float, float]:
