@@ -202,6 +202,10 @@ class GlobalSearchOption:
     search_samples : int or None
         Samples of each Euler angle in the grid (``4 * bandwidth`` when None: steps of
         180 / (2B) degrees in alpha and gamma); at least ``2 * bandwidth - 1``.
+    shell_hypotheses : int
+        For two single views (two scans): peaks of the correlation of the voxel grids'
+        spectra on spherical shells (:mod:`o3d_spectral.shells`) tried besides the EGI's;
+        0 tries none.
     """
 
     hypotheses: int = 32
@@ -211,9 +215,11 @@ class GlobalSearchOption:
     focus_places: int = 3
     search_visibility: bool = True
     search_samples: int | None = None
+    shell_hypotheses: int = 16
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)
+        check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places"):
             check_int(name, getattr(self, name), low=1)

@@ -4,7 +4,9 @@ The paper's law is a local gradient ascent. From an unknown pose,
 :func:`global_search` starts it from many places instead (METHOD.md, section 7):
 
 1. **Candidates**: the highest peaks of the rotation correlation evaluated over the whole
-   of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`).
+   of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`);
+   for two single views, also those of the correlation of their voxel grids' spectra on
+   spherical shells (:func:`shell_hypotheses`).
 2. **Placement**: each candidate rotation is placed by one phase correlation and scored by
    that correlation's peak height (how well the turned grid matches under any shift):
    :func:`hypotheses`.
@@ -28,12 +30,13 @@ from numpy.typing import ArrayLike, NDArray
 from . import so3
 from .law import Climb, climb
 from .options import GlobalSearchOption
-from .so3fft import peaks
+from .shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
+from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = [
-    "Hypothesis", "hypotheses", "places", "global_search", "confidence", "DISTINCT_ANGLE",
-    "FOCUS_MARGIN",
+    "Hypothesis", "hypotheses", "shell_hypotheses", "places", "global_search", "confidence",
+    "DISTINCT_ANGLE", "FOCUS_MARGIN",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
@@ -82,8 +85,31 @@ def hypotheses(
     grid = stepper.rotation_grid(
         moving, search.samples(stepper.option.bandwidth), visibility=search.search_visibility
     )
+    return _placed(stepper, moving, peaks(grid, count=search.hypotheses), around)
+
+
+def shell_hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, count: int
+) -> list[Hypothesis]:
+    """The ``count`` highest peaks over SO(3) of the correlation of the two clouds'
+    spectra on spherical shells (:mod:`o3d_spectral.shells`), each placed by phase
+    correlation, highest placed peak first."""
+    voxel = shell_voxel(stepper.target_points, moving.points)
+    grid = correlation_grid(
+        shell_coefficients(moving.points, voxel), shell_coefficients(stepper.target_points, voxel),
+        n_alpha=2 * SHELL_BANDWIDTH, n_beta=2 * SHELL_BANDWIDTH,
+    )
+    return _placed(stepper, moving, peaks(grid, count=count), None)
+
+
+def _placed(
+    stepper: SpectralStepper, moving: MovingCloud, rotations: list[tuple[NDArray, float]],
+    around: ArrayLike | None,
+) -> list[Hypothesis]:
+    """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
+    near ``around`` (anywhere when None), highest placed peak first."""
     found = []
-    for R, _ in peaks(grid, count=search.hypotheses):
+    for R, _ in rotations:
         centre, peak, cost = stepper.locate(moving, R, around=around)
         found.append(Hypothesis(R, centre, peak, cost))
     return sorted(found, key=lambda h: -h.translation_peak)
@@ -139,6 +165,9 @@ def global_search(
         score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
     ranked = hypotheses(stepper, moving, search)
+    if search.shell_hypotheses and stepper.two_views(moving):
+        ranked = sorted(ranked + shell_hypotheses(stepper, moving, search.shell_hypotheses),
+                        key=lambda h: -h.translation_peak)
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)

@@ -95,8 +95,10 @@ def correlation_grid(
 
     Parameters
     ----------
-    F, G : array_like, shape (B, 2B - 1)
-        Coefficients of the moving and the fixed EGI.
+    F, G : array_like, shape (B, 2B - 1) or (S, B, 2B - 1)
+        Coefficients of the moving and the fixed EGI; or stacks of ``S`` functions each
+        (the spectra's shells, :mod:`o3d_spectral.shells`), whose ``S`` correlations of
+        ``F[s]`` with ``G[s]`` are summed.
     n_alpha : int, optional
         Samples of ``alpha`` and ``gamma`` (>= 2B - 1); ``2B`` when omitted.
     n_beta : int, optional
@@ -107,7 +109,11 @@ def correlation_grid(
     CorrelationGrid
     """
     F, G = np.asarray(F, dtype=np.float64), np.asarray(G, dtype=np.float64)
-    B = F.shape[0]
+    if F.shape != G.shape or F.ndim not in (2, 3):
+        raise ValueError(f"F and G must both be (B, 2B - 1) or (S, B, 2B - 1), got "
+                         f"{F.shape} and {G.shape}")
+    F, G = F.reshape((-1,) + F.shape[-2:]), G.reshape((-1,) + G.shape[-2:])
+    B = F.shape[1]
     n_alpha = 2 * B if n_alpha is None else int(n_alpha)
     n_beta = 2 * B if n_beta is None else int(n_beta)
     if n_alpha < 2 * B - 1:
@@ -115,8 +121,9 @@ def correlation_grid(
     if n_beta < 1:
         raise ValueError(f"n_beta must be positive, got {n_beta}")
     W = _diagonalising_basis(B)
-    g, f = G @ W.T, F @ W.T  # (B, 2B-1): g^l = W G^l
-    K = np.einsum("lm,jlmn,ln->jmn", g.conj(), _delta(B, n_beta), f)  # (n_beta, m, n)
+    g, f = G @ W.T, F @ W.T  # (S, B, 2B-1): g^l = W G^l
+    products = np.einsum("slm,sln->lmn", g.conj(), f)  # summed over the stack
+    K = np.einsum("jlmn,lmn->jmn", _delta(B, n_beta), products)  # (n_beta, m, n)
     # Place order m at FFT index m mod n_alpha, then sum_mn K exp(i (m a + n c)).
     spectrum = np.zeros((n_beta, n_alpha, n_alpha), dtype=np.complex128)
     idx = np.arange(-(B - 1), B) % n_alpha

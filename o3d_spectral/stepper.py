@@ -123,6 +123,7 @@ class SpectralStepper:
             peak_width=self.option.peak_width, window=self.option.translation_window,
             max_memory=self.option.max_grid_memory,
         )
+        self.target_points = prepared.points
         self.target_normals, self.target_normal_points = prepared.normals, prepared.normal_points
         self.normals_centre = prepared.normal_points.mean(axis=0)
         self.target_coefficients = self._smoothed_levels(self._egi(prepared.normals))
@@ -214,6 +215,13 @@ class SpectralStepper:
         the fixed cloud is a single view (:attr:`viewpoint`) and the moving cloud is not
         (two views each miss what the other sees: neither is culled)."""
         return self._culls(moving.reading)
+
+    def two_views(self, moving: MovingCloud) -> bool:
+        """Whether both clouds are single views (two scans, ``reading.view`` known on
+        both): neither is culled, and the global search adds rotations from the voxel
+        grids' spectra (:mod:`o3d_spectral.shells`), which two views share more of than
+        their EGIs."""
+        return self.target_reading.view is not None and moving.reading.view is not None
 
     def _culls(self, reading: CloudReading) -> bool:
         """:meth:`sees` for a moving cloud read as ``reading``."""

@@ -104,3 +104,13 @@ def test_visible_grid_finds_the_rotation_of_one_view(rng):
 def test_facing_rejects_a_zero_direction():
     with pytest.raises(ValueError, match="direction"):
         egi.facing([0.0, 0.0, 0.0])
+
+
+def test_stacked_grid_is_the_sum_of_each_pair_s_grid(rng):
+    F, G = rng.normal(size=(3, 6, 11)), rng.normal(size=(3, 6, 11))
+    stacked = so3fft.correlation_grid(F, G, n_alpha=14, n_beta=9).values
+    each = sum(so3fft.correlation_grid(f, g, n_alpha=14, n_beta=9).values
+               for f, g in zip(F, G, strict=True))
+    np.testing.assert_allclose(stacked, each, atol=1e-12)
+    with pytest.raises(ValueError, match="S, B, 2B - 1"):
+        so3fft.correlation_grid(F, G[0])
