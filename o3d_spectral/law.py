@@ -66,11 +66,12 @@ class IterationRecord:
     centre: NDArray[np.float64]
 
 
-def pose_score(peak: float, correlation: float) -> float:
+def pose_score(peak: float, correlation: float | None) -> float:
     """How well a pose fits: its phase-correlation peak height (how well the voxels match)
     times its EGI correlation ``4 pi C_r`` (1 for identical EGIs): a pose must match both
-    the shape and the normals."""
-    return peak * 4.0 * np.pi * correlation
+    the shape and the normals. The peak alone when ``correlation`` is None (two views,
+    whose EGIs differ by what each sensor sees even at the true pose)."""
+    return peak if correlation is None else peak * 4.0 * np.pi * correlation
 
 
 @dataclass
@@ -96,6 +97,9 @@ class Climb:
         EGI, :mod:`o3d_spectral.search`).
     scores : list of float
         :func:`pose_score` of the iterates scored so far (:meth:`best_iterate`).
+    egi_scored : bool
+        Whether the EGI correlation counts in the score (not for two views:
+        :meth:`o3d_spectral.SpectralStepper.two_views`).
     """
 
     centroid: NDArray[np.float64]
@@ -107,6 +111,7 @@ class Climb:
     predicted: NDArray[np.float64] | None = None
     stepper: SpectralStepper | None = None
     scores: list[float] = field(default_factory=list)
+    egi_scored: bool = True
 
     def matrix(self) -> NDArray[np.float64]:
         """The current pose as a 4x4 rigid transformation."""
@@ -122,7 +127,8 @@ class Climb:
         the law climbs away from a pose it started at.
         """
         for record in self.history[len(self.scores) :]:
-            self.scores.append(pose_score(record.translation_peak, record.correlation))
+            correlation = record.correlation if self.egi_scored else None
+            self.scores.append(pose_score(record.translation_peak, correlation))
         k = int(np.argmax(self.scores))
         record = self.history[k]
         pose = so3.about_pivot(record.rotation, record.centre - self.centroid, self.centroid)

@@ -215,7 +215,7 @@ class GlobalSearchOption:
     focus_places: int = 3
     search_visibility: bool = True
     search_samples: int | None = None
-    shell_hypotheses: int = 16
+    shell_hypotheses: int = 32
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)

@@ -70,10 +70,10 @@ class Hypothesis:
     translation_peak: float
     cost_translation: float
 
-    def climb(self, moving: MovingCloud) -> Climb:
-        """A climb of the law starting at this hypothesis."""
+    def climb(self, moving: MovingCloud, *, egi_scored: bool = True) -> Climb:
+        """A climb of the law starting at this hypothesis (see :class:`Climb`)."""
         return Climb(moving.centroid, self.rotation, self.centre - moving.centroid,
-                     predicted=self.centre)
+                     predicted=self.centre, egi_scored=egi_scored)
 
 
 def hypotheses(
@@ -171,7 +171,8 @@ def global_search(
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
-    climbs = [h.climb(moving) for h in ranked[: search.climbs]]
+    egi_scored = not stepper.two_views(moving)
+    climbs = [h.climb(moving, egi_scored=egi_scored) for h in ranked[: search.climbs]]
     for state in climbs:
         if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
             near, _, _ = stepper.visible(moving, state.R, state.T)
