@@ -10,8 +10,9 @@ group's voxel size (``real.VOXEL_SIZES``). Normal modes (``real.with_normals``):
 
 * spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults;
 * FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial), seeded per case; its
-  point-to-plane ICP needs target normals: when the target has none they are estimated
-  (``KDTreeSearchParamHybrid(2 voxels, 30)``) inside the timed call.
+  point-to-plane ICP needs target normals: when the target has none the method estimates
+  them (``harness.methods.with_target_normals``: 2 voxels, 30 neighbours) inside the timed
+  call.
 
 Success: rotation error < 5 deg and translation error at the source centroid < 1 cm
 (``real.is_success``, symmetry-aware). Writes ``rows.csv`` (one row per case, rotation,
@@ -57,14 +58,8 @@ def _spectral(source, target, voxel: float, seed: int) -> tuple[np.ndarray, dict
 
 
 def _fpfh(source, target, voxel: float, seed: int) -> tuple[np.ndarray, dict]:
-    import open3d as o3d
-
     from o3d_spectral.harness.methods import get_method
 
-    if not target.has_normals():  # the tutorial's ICP needs them; counted in the time
-        target = o3d.geometry.PointCloud(target)
-        target.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2.0 * voxel,
-                                                                     max_nn=30))
     transformation, _ = get_method("fpfh_ransac")(source, target, voxel, seed)
     return transformation, {}
 

@@ -8,9 +8,9 @@ caches first.
 * spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults.
 * FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial: FPFH + RANSAC, then
   point-to-plane ICP on the full clouds, seeded as the harness seeds it). Its ICP needs
-  target normals: when the target has none (the real cases), they are estimated *inside
-  the timed call* with ``estimate_normals(KDTreeSearchParamHybrid(2 * voxel, 30))`` on a
-  copy, so both methods start from the same normal-free input.
+  target normals: when the target has none (the real cases), the method estimates them
+  *inside the timed call* (``harness.methods.with_target_normals``: radius 2 voxels, 30
+  neighbours, on a copy), so both methods start from the same normal-free input.
 
 Groups and voxel sizes:
 
@@ -85,13 +85,7 @@ def spectral_global(task: Task) -> np.ndarray:
 
 
 def fpfh_ransac(task: Task) -> np.ndarray:
-    target = task.target
-    if not target.has_normals():  # the tutorial's ICP needs them; counted in the time
-        target = o3d.geometry.PointCloud(target)
-        target.estimate_normals(
-            o3d.geometry.KDTreeSearchParamHybrid(radius=2.0 * task.voxel, max_nn=30)
-        )
-    transformation, _ = get_method("fpfh_ransac")(task.source, target, task.voxel, task.seed)
+    transformation, _ = get_method("fpfh_ransac")(task.source, task.target, task.voxel, task.seed)
     return transformation
 
 

@@ -334,12 +334,29 @@ def global_then_refine(
     default), the global registration ``match(source_down, target_down, source_fpfh,
     target_fpfh)`` (seeded), then the tutorial's point-to-plane refinement on the full
     clouds (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
-    estimate."""
+    estimate. A target without normals gets them first (:func:`with_target_normals`)."""
+    target = with_target_normals(target, voxel_size)
     source_down, source_fpfh = _fpfh(source, voxel_size, features)
     target_down, target_fpfh = _fpfh(target, voxel_size, features)
     o3d.utility.random.seed(seed)
     coarse = match(source_down, target_down, source_fpfh, target_fpfh)
     return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
+
+
+def with_target_normals(
+    target: o3d.geometry.PointCloud, voxel_size: float
+) -> o3d.geometry.PointCloud:
+    """``target``, or, when it has no normals (a raw scan), a copy with normals estimated
+    as the tutorial's features' are (radius ``normal_radius_voxels`` voxels of
+    ``voxel_size``, metres; ``normal_max_nn`` neighbours): the tutorial's point-to-plane
+    refinement needs them. Called inside the methods, so the estimate is in their time."""
+    if target.has_normals():
+        return target
+    target = o3d.geometry.PointCloud(target)
+    target.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(
+        radius=_FPFH["normal_radius_voxels"] * voxel_size, max_nn=_FPFH["normal_max_nn"]
+    ))
+    return target
 
 
 def ransac_matcher(voxel_size: float):

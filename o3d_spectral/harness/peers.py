@@ -92,6 +92,7 @@ def kiss_matcher(source, target, voxel_size: float, seed: int) -> tuple[np.ndarr
     if solution.valid:
         coarse[:3, :3] = np.asarray(solution.rotation, dtype=np.float64)
         coarse[:3, 3] = np.asarray(solution.translation, dtype=np.float64).ravel()
+    target = _methods.with_target_normals(target, voxel_size)
     return point_to_plane_refinement(source, target, voxel_size, coarse), {}
 
 
