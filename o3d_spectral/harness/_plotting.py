@@ -3,6 +3,8 @@ in inches, panel titles, log axes with decade ticks, and how a figure is written
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -101,13 +103,32 @@ def title(ax, text: str) -> None:
     ax.set_title(text, fontsize=10, y=1.0)
 
 
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data, CRC of type and data."""
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
 def write_png(fig, path: Path) -> Path:
-    """Write the image of ``fig`` as last drawn to ``path``: a PNG without the alpha
-    channel (the figure is opaque), zlib level 3, which took half the time of
-    ``savefig``'s RGBA at level 6 and makes smaller files."""
-    pixels = np.asarray(fig.canvas.buffer_rgba())[..., :3]
-    image = require("PIL.Image").fromarray(pixels)
-    image.save(path, format="png", compress_level=3, dpi=(fig.dpi, fig.dpi))
+    """Write the image of ``fig`` as last drawn to ``path``: an 8-bit RGB PNG (the figure is
+    opaque) at the figure's resolution, zlib level 3.
+
+    Written here rather than by Pillow, which tries every PNG filter on every row: its
+    choice took four times as long as the compression itself. A plot's rows are mostly flat
+    colour, which deflate compresses about as well without a filter, so the scanlines are
+    written unfiltered (PNG filter type 0).
+    """
+    pixels = np.asarray(fig.canvas.buffer_rgba())
+    height, width = pixels.shape[:2]
+    rgb = pixels[..., :3].reshape(height, 3 * width)
+    scanlines = np.hstack([np.zeros((height, 1), np.uint8), rgb])  # each: filter type 0
+    per_metre = int(fig.dpi / 0.0254 + 0.5)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+        + _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1))
+        + _chunk(b"IDAT", zlib.compress(scanlines.tobytes(), 3))
+        + _chunk(b"IEND", b"")
+    )
     return path
 
 
