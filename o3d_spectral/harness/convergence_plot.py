@@ -18,7 +18,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness._plotting import FLOOR, figure, log_axis, pyplot, title, write_png
+from o3d_spectral.harness._plotting import (
+    FLOOR,
+    draw,
+    figure,
+    log_axis,
+    pyplot,
+    title,
+    write_png,
+)
 from o3d_spectral.harness.records import CURVE_COLUMNS
 from o3d_spectral.harness.tables import suite_label, suite_order
 
@@ -124,7 +132,7 @@ def _frame(plt, suites: list[tuple[str, str]], panels: list[list[_Panel]]):
         ax.set_autoscale_on(False)  # the curves drawn later leave the limits alone
     for ax in axes[-1]:
         ax.set_xlabel("iteration")
-    fig.canvas.draw()
+    draw(fig)
     return fig, axes, fig.canvas.copy_from_bbox(fig.bbox)
 
 
