@@ -46,12 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from o3d_spectral._files import atomic_write_text
-from o3d_spectral.harness._optional import require
-
-try:  # optional: reads a row in a third of the time of json
-    import orjson
-except ImportError:  # pragma: no cover - exercised when orjson is missing
-    orjson = None
+from o3d_spectral.harness._optional import parse_json, require
 
 if TYPE_CHECKING:
     from o3d_spectral.synthetic.suite import Suite
@@ -229,18 +224,6 @@ def result_files(path: str | Path) -> list[Path]:
     return legacy + sorted((path / RESULTS_DIR).glob("*.jsonl"))
 
 
-def _parse(line: str) -> object:
-    """The JSON value of ``line``: by orjson when it is installed and accepts the line, else
-    by ``json``, which also reads what ``json.dumps`` writes and orjson refuses (NaN,
-    Infinity, integers beyond 64 bits); both read a float to the same double."""
-    if orjson is not None:
-        try:
-            return orjson.loads(line)
-        except orjson.JSONDecodeError:
-            pass
-    return json.loads(line)
-
-
 def _rows(file: Path) -> list[dict]:
     """The complete rows of a results file: a last line without its newline (a session
     killed mid-write, or one still writing) is left out; ``ValueError`` naming the file and
@@ -250,10 +233,7 @@ def _rows(file: Path) -> list[dict]:
     for number, line in enumerate(text[: text.rfind("\n") + 1].splitlines(), 1):
         if not line.strip():
             continue
-        try:
-            row = _parse(line)
-        except json.JSONDecodeError:
-            row = None
+        row = parse_json(line)
         if not isinstance(row, dict) or any(key not in row for key in KEY):
             raise ValueError(f"{file}, line {number}: not a results row; remove that line")
         rows.append(row)
