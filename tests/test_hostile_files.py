@@ -333,6 +333,22 @@ def test_corrupt_results_file_is_named(tmp_path, text, message):
         load_results(tmp_path)
 
 
+def test_rows_are_read_as_json_reads_them(tmp_path):
+    """Whichever parser reads a row (orjson refuses NaN, Infinity and integers beyond 64
+    bits, which json writes), the values are json's."""
+    _, load_results, _ = _harness()
+    rows = [
+        {"suite": "full", "index": 0, "method": "x", "fitness": float("nan"), "seed": 2**70},
+        {"suite": "full", "index": 1, "method": "x", "fitness": float("inf"), "seed": 1},
+        {"suite": "full", "index": 2, "method": "x", "fitness": 0.1 + 0.2, "seed": 2},
+    ]
+    (tmp_path / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    frame = load_results(tmp_path)
+    assert np.isnan(frame.loc[0, "fitness"]) and frame.loc[1, "fitness"] == float("inf")
+    assert frame.loc[2, "fitness"] == 0.1 + 0.2
+    assert list(frame["seed"]) == [2**70, 1, 2]
+
+
 def test_corrupt_session_files_are_named(tmp_path):
     _, load_results, _ = _harness()
     read_config, _ = _records()

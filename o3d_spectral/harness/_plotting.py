@@ -3,6 +3,8 @@ in inches, panel titles, log axes with decade ticks, and how a figure is written
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,7 @@ __all__ = [
     "DPI",
     "FLOOR",
     "LEGEND_ROOM",
+    "draw",
     "figure",
     "log_axis",
     "pyplot",
@@ -101,19 +104,74 @@ def title(ax, text: str) -> None:
     ax.set_title(text, fontsize=10, y=1.0)
 
 
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data, CRC of type and data."""
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
 def write_png(fig, path: Path) -> Path:
-    """Write the image of ``fig`` as last drawn to ``path``: a PNG without the alpha
-    channel (the figure is opaque), zlib level 3, which took half the time of
-    ``savefig``'s RGBA at level 6 and makes smaller files."""
-    pixels = np.asarray(fig.canvas.buffer_rgba())[..., :3]
-    image = require("PIL.Image").fromarray(pixels)
-    image.save(path, format="png", compress_level=3, dpi=(fig.dpi, fig.dpi))
+    """Write the image of ``fig`` as last drawn to ``path``: an 8-bit RGB PNG (the figure is
+    opaque) at the figure's resolution, zlib level 3.
+
+    Written here rather than by Pillow, which tries every PNG filter on every row: its
+    choice took four times as long as the compression itself. A plot's rows are mostly flat
+    colour, which deflate compresses about as well without a filter, so the scanlines are
+    written unfiltered (PNG filter type 0).
+    """
+    buffer = fig.canvas.buffer_rgba()
+    height, width = buffer.shape[:2]
+    rgba = require("PIL.Image").frombuffer("RGBA", (width, height), buffer, "raw", "RGBA", 0, 1)
+    scanlines = np.zeros((height, 1 + 3 * width), np.uint8)  # each: filter type 0, pixels
+    # Pillow drops the alpha channel in a third of the time of numpy's strided copy.
+    scanlines[:, 1:] = np.asarray(rgba.convert("RGB")).reshape(height, 3 * width)
+    per_metre = int(fig.dpi / 0.0254 + 0.5)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + _chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+        + _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1))
+        + _chunk(b"IDAT", zlib.compress(scanlines, 3))
+        + _chunk(b"IEND", b"")
+    )
     return path
 
 
-def save(fig, plt, path: Path) -> Path:
-    """Draw ``fig``, write it to ``path`` (PNG, :func:`write_png`) and close it."""
+def _ticks_in_view(axis) -> None:
+    """Fix ``axis``'s ticks to those its locator gives within the view, labelled as its
+    formatter labels them among all it gives.
+
+    A locator also gives a tick or more beyond each end of the view, and matplotlib makes a
+    tick object (three lines, two labels) for every tick given, drawn or not: a third of
+    the ticks of these figures, and making them took more time than drawing the others.
+    """
+    ticker = require("matplotlib.ticker")
+    if isinstance(axis.get_major_locator(), ticker.NullLocator):
+        return
+    ticks = axis.get_majorticklocs()
+    labels = np.array(axis.major.formatter.format_ticks(ticks), dtype=object)
+    offset = axis.major.formatter.get_offset()
+    scale = axis.get_transform()  # where ticks are on the axis (log10 on a log axis)
+    low, high = sorted(scale.transform(axis.get_view_interval()))
+    at, margin = scale.transform(ticks), 1e-6 * (high - low)  # wider than matplotlib's
+    shown = (at >= low - margin) & (at <= high + margin)
+    axis.set_major_locator(ticker.FixedLocator(ticks[shown]))
+    formatter = ticker.FixedFormatter(list(labels[shown]))
+    formatter.set_offset_string(offset)
+    axis.set_major_formatter(formatter)
+
+
+def draw(fig) -> None:
+    """Draw ``fig`` with only the ticks in view made (:func:`_ticks_in_view`); its limits
+    must be final."""
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            _ticks_in_view(axis)
     fig.canvas.draw()
+
+
+def save(fig, plt, path: Path) -> Path:
+    """Draw ``fig`` (:func:`draw`), write it to ``path`` (PNG, :func:`write_png`) and close
+    it."""
+    draw(fig)
     write_png(fig, path)
     plt.close(fig)
     return path

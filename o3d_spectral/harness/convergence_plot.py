@@ -18,7 +18,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from o3d_spectral.harness._optional import require
-from o3d_spectral.harness._plotting import FLOOR, figure, log_axis, pyplot, title, write_png
+from o3d_spectral.harness._plotting import (
+    FLOOR,
+    draw,
+    figure,
+    log_axis,
+    pyplot,
+    title,
+    write_png,
+)
 from o3d_spectral.harness.records import CURVE_COLUMNS
 from o3d_spectral.harness.tables import suite_label, suite_order
 
@@ -52,6 +60,17 @@ class _Panel:
         return [(0.0, float(low)), (float(last), float(high))]
 
 
+def _lines(curves: list[list[float]], scale: float) -> list[np.ndarray]:
+    """Each curve as its (iteration, error) points, the errors scaled and at least
+    :data:`FLOOR`: made as one array and split (two small arrays a curve took longer)."""
+    lengths = np.array([len(c) for c in curves])
+    ends = np.cumsum(lengths)
+    errors = np.fromiter(itertools.chain.from_iterable(curves), float, ends[-1])
+    iterations = np.arange(ends[-1]) - np.repeat(ends - lengths, lengths)
+    points = np.column_stack([iterations, np.maximum(scale * errors, FLOOR)])
+    return np.split(points, ends[:-1])
+
+
 def _padded(curves: list[list[float]]) -> np.ndarray:
     """Curves of unequal length as rows, each continued with its last value (a run that
     stopped keeps its final error)."""
@@ -82,18 +101,15 @@ def _panel(runs: pd.DataFrame, column: str, scale: float) -> _Panel:
     curves = list(runs[column])
     success = runs["success"].astype(bool).to_numpy()
     shown = curves[:_MAX_CURVES]
-    lines = [
-        np.column_stack([np.arange(len(c)), np.maximum(scale * np.asarray(c), FLOOR)])
-        for c in shown
-    ]
     colours = ["tab:green" if won else "tab:red" for won in success[: len(shown)]]
-    return _Panel(lines, colours, _medians(curves, success, scale))
+    return _Panel(_lines(shown, scale), colours, _medians(curves, success, scale))
 
 
 def _method_panels(runs: pd.DataFrame, suites: list[tuple[str, str]]) -> list[_Panel]:
     """One method's panels, row by row: a row per suite, translation then rotation."""
+    by_suite = dict(tuple(runs.groupby("suite", sort=False)))
     return [
-        _panel(runs[runs["suite"] == suite], column, scale)
+        _panel(by_suite[suite], column, scale)
         for suite, _ in suites
         for column, scale, _ in _COLUMNS
     ]
@@ -116,7 +132,7 @@ def _frame(plt, suites: list[tuple[str, str]], panels: list[list[_Panel]]):
         ax.set_autoscale_on(False)  # the curves drawn later leave the limits alone
     for ax in axes[-1]:
         ax.set_xlabel("iteration")
-    fig.canvas.draw()
+    draw(fig)
     return fig, axes, fig.canvas.copy_from_bbox(fig.bbox)
 
 

@@ -92,7 +92,8 @@ def _success_by_angle(runs: pd.DataFrame) -> np.ndarray:
 def plot_success_vs_angle(frame: pd.DataFrame, path: Path) -> Path:
     """Success rate (%) per bin of the initial rotation angle (0-180 degrees, 20-degree bins)."""
     plt = pyplot()
-    cells, empty = by_suite_and_method(frame), frame.iloc[:0]
+    cells = by_suite_and_method(frame, ["init_angle_deg", "success"])
+    empty = frame.iloc[:0]
     styles = _styles(frame)
     share = {"sharey": True}
     fig, axes, suites = _panels(frame, plt, share=share, right=LEGEND_ROOM)
@@ -121,14 +122,15 @@ def plot_cumulative_errors(
     ``max_translation_m``), drawn as dashed lines.
     """
     plt = pyplot()
-    cells, empty = by_suite_and_method(frame), frame.iloc[:0]
-    styles = _styles(frame)
-    share = {"sharey": True}
-    fig, axes, suites = _panels(frame, plt, rows=2, share=share, right=LEGEND_ROOM)
     quantities = [
         ("rotation_error_sym_deg", 1.0, "rotation error (deg)", "max_rotation_deg"),
         ("translation_error_sym_m", 1e3, "translation error (mm)", "max_translation_m"),
     ]
+    cells = by_suite_and_method(frame, [column for column, *_ in quantities])
+    empty = frame.iloc[:0]
+    styles = _styles(frame)
+    share = {"sharey": True}
+    fig, axes, suites = _panels(frame, plt, rows=2, share=share, right=LEGEND_ROOM)
     for row, (column, scale, label, key) in enumerate(quantities):
         for ax, (suite, _) in zip(axes[row], suites, strict=True):
             for method, style in styles.items():
@@ -172,7 +174,7 @@ def _draw_boxes(ax, data: list[np.ndarray]) -> None:
 def plot_times(frame: pd.DataFrame, path: Path) -> Path:
     """Box plots of the wall time per registration, per suite and method (log scale)."""
     plt = pyplot()
-    cells, empty = by_suite_and_method(frame), frame.iloc[:0]
+    cells, empty = by_suite_and_method(frame, ["time_s"]), frame.iloc[:0]
     methods = method_order(frame)
     fig, axes, suites = _panels(frame, plt, left=1.9)
     for ax, (suite, _) in zip(axes[0], suites, strict=True):

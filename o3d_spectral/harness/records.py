@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from o3d_spectral._files import atomic_write_text
-from o3d_spectral.harness._optional import require
+from o3d_spectral.harness._optional import parse_json, require
 
 if TYPE_CHECKING:
     from o3d_spectral.synthetic.suite import Suite
@@ -233,10 +233,7 @@ def _rows(file: Path) -> list[dict]:
     for number, line in enumerate(text[: text.rfind("\n") + 1].splitlines(), 1):
         if not line.strip():
             continue
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
-            row = None
+        row = parse_json(line)
         if not isinstance(row, dict) or any(key not in row for key in KEY):
             raise ValueError(f"{file}, line {number}: not a results row; remove that line")
         rows.append(row)
