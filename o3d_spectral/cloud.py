@@ -13,13 +13,8 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from .normals import (
-    SIGN_DISAGREEMENT,
-    faces,
-    orient,
-    sign_disagreement,
-    view_direction,
-)
+from .normals import faces, orient, view_direction
+from .signs import SIGN_DISAGREEMENT, sign_disagreement
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
@@ -188,7 +183,7 @@ class CloudReading:
     ----------
     normals_from : {"given", "re-oriented", "estimated"}
         The caller's normals, as given or with their signs chosen again (neighbours
-        disagreed, :func:`o3d_spectral.normals.sign_disagreement`), or estimated.
+        disagreed, :func:`o3d_spectral.signs.sign_disagreement`), or estimated.
     orientation : {"camera", "sensor frame", "surface"} or None
         The rule that chose their signs (:func:`o3d_spectral.normals.orient`); None for
         normals used as given.
@@ -199,7 +194,7 @@ class CloudReading:
         None otherwise.
     sign_disagreement : float or None
         For given normals: the share of neighbours whose normals point to opposite sides
-        (:func:`o3d_spectral.normals.sign_disagreement`).
+        (:func:`o3d_spectral.signs.sign_disagreement`).
     flatness : float
         Length of the mean unit normal: 1 when all normals are alike (a plane, whose
         EGI leaves the rotation about it free), near 0 for a closed surface.

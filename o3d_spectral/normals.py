@@ -3,9 +3,8 @@
 A cloud's normals are usable by the method only when their signs are consistent: outward
 on a model, towards the sensor on a scan. This module
 
-- tells when given normals are not (:func:`sign_disagreement`: an estimate with no
-  orientation step, e.g. Open3D's ``estimate_normals()``, flips whole patches);
-- orients normals (:func:`orient`): towards a known sensor; towards the origin for a depth
+- orients normals whose signs are not (:mod:`o3d_spectral.signs` tells when), or that
+  were estimated (:func:`orient`): towards a known sensor; towards the origin for a depth
   map given in its sensor's frame (:func:`is_depth_map`); otherwise consistently along
   the surface and outward from the centroid;
 - recognises a single view from its normals alone, in any frame
@@ -20,18 +19,15 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .signs import SIGN_DISAGREEMENT, sign_disagreement
+
 __all__ = [
-    "SIGN_DISAGREEMENT", "VIEW_SHARE", "VIEW_MEAN", "is_depth_map", "is_depth_map_along",
-    "sign_disagreement", "sensor_direction", "faces",
+    "VIEW_SHARE", "VIEW_MEAN", "is_depth_map", "is_depth_map_along", "sensor_direction", "faces",
     "orient", "view_direction", "sensor_position",
 ]
 
 #: Normals are oriented along the surface over at most this many points (:func:`orient`).
 PROPAGATED_POINTS = 5000
-#: Given normals whose neighbours disagree in sign more often than this are re-oriented
-#: (the suites' normals from orientable meshes: at most 4.4%; Open3D's unoriented
-#: estimate on the bundled real scans: 5.6-23%, median 7.8%).
-SIGN_DISAGREEMENT = 0.05
 #: :func:`view_direction`: a single view when at least this share of its normals lie in
 #: the hemisphere about their mean, and the mean's length is at least ``VIEW_MEAN``.
 VIEW_SHARE = 0.9
@@ -41,8 +37,6 @@ VIEW_MEAN = 0.4
 DISTANT_SENSOR = 1000.0
 #: :func:`is_depth_map_along`: depth gap (voxels) and share of rays allowed to exceed it.
 ALONG_GAP, ALONG_SHARE = 1.5, 0.05
-#: Points and neighbours :func:`sign_disagreement` looks at.
-_SIGN_QUERIES, _SIGN_NEIGHBOURS, _SIGN_TREE_POINTS = 5000, 6, 100_000
 
 
 def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> bool:
@@ -192,35 +186,6 @@ _DIRECTIONS = _fibonacci_hemisphere(80)
 _CAP = _fibonacci_hemisphere(3000)
 _CAP = _CAP[_CAP[:, 2] >= np.cos(np.deg2rad(12.0))]
 _DIRECTION_POINTS = 2000
-
-
-def sign_disagreement(points: ArrayLike, normals: ArrayLike) -> float:
-    """Share of nearest-neighbour pairs whose normals point to opposite sides.
-
-    Over up to 5000 evenly spread points and those of their 6 nearest neighbours (among
-    up to 100,000 points) within 30 degrees of their tangent plane (on the same surface,
-    not across a thin wall): near 0 for consistently oriented normals, and well above
-    :data:`SIGN_DISAGREEMENT` for normals estimated with no orientation step.
-
-    Parameters
-    ----------
-    points, normals : array_like, shape (N, 3)
-        Metres; unit or zero normals.
-    """
-    p, n = np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64)
-    stride = int(np.ceil(len(p) / _SIGN_TREE_POINTS))
-    p, n = p[::stride], n[::stride]
-    k = min(_SIGN_NEIGHBOURS, len(p) - 1)
-    if k < 1:
-        return 0.0
-    queries = np.linspace(0, len(p) - 1, min(_SIGN_QUERIES, len(p))).astype(np.int64)
-    _, nearest = cKDTree(p).query(p[queries], k=k + 1)
-    nearest = nearest[:, 1:]
-    dots = np.einsum("ij,ikj->ik", n[queries], n[nearest])
-    offsets = p[nearest] - p[queries][:, None, :]
-    across = np.abs(np.einsum("ij,ikj->ik", n[queries], offsets))
-    along = across < 0.5 * np.linalg.norm(offsets, axis=2)  # same surface, not a wall's far side
-    return float(np.mean(dots[along] < 0.0)) if along.any() else 0.0
 
 
 def orient(

@@ -14,13 +14,9 @@ import o3d_spectral
 from o3d_spectral.cloud import as_arrays, prepare
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.normals import (
-    SIGN_DISAGREEMENT,
-    orient,
-    sensor_direction,
-    sign_disagreement,
-    view_direction,
-)
+from o3d_spectral.normals import orient, sensor_direction, view_direction
+from o3d_spectral.signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
+from tests.conftest import thin_walled_cup
 
 VOXEL = 0.008
 
@@ -64,6 +60,20 @@ def test_open3d_unoriented_estimate_on_a_real_scan_is_caught():
     assert sign_disagreement(points, normals) > SIGN_DISAGREEMENT
     scan.orient_normals_towards_camera_location([0.0, 0.0, 10.0])
     assert sign_disagreement(points, np.asarray(scan.normals)) < SIGN_DISAGREEMENT
+
+
+def test_thin_walls_disagree_back_to_back_and_unoriented_signs_do_not():
+    """A cup's wall 2 mm thick sampled 3000 times: neighbours lie on either face, with
+    normals pointing away from each other. Random signs on one surface (the cup's outer
+    face, a sphere) disagree as often, but not back to back."""
+    points, normals = thin_walled_cup(wall=0.002)
+    assert sign_disagreement(points, normals) > SIGN_DISAGREEMENT
+    assert back_to_back(points, normals) >= THIN_WALLS
+    outer = (normals[:, 2] == 0.0) & (np.einsum("ij,ij->i", points, normals) > 0.0)
+    for p, n in ((points[outer], normals[outer]), (_sphere(), _sphere() / 0.05)):
+        random = n * np.random.default_rng(4).choice([-1.0, 1.0], size=(len(n), 1))
+        assert sign_disagreement(p, random) > 0.3
+        assert back_to_back(p, random) < 0.5 * THIN_WALLS
 
 
 def test_orient_towards_a_camera_and_outward_on_a_model():

@@ -169,7 +169,7 @@ def test_data_folder_from_the_environment(monkeypatch, tmp_path):
 def test_normal_modes(name):
     """Oriented normals face each scan's sensor (turned with the source) and agree along
     the surface; unoriented ones are Open3D's estimate, with signs that disagree."""
-    from o3d_spectral.normals import SIGN_DISAGREEMENT, sign_disagreement
+    from o3d_spectral.signs import SIGN_DISAGREEMENT, sign_disagreement
 
     case = next(c for c in CASES if c.name == name)
     turned, M = randomly_rotated(case, seed=5)
