@@ -90,6 +90,7 @@ def coefficients(
     weights: ArrayLike | None = None,
     binned: bool = False,
     sigma: float = 0.0,
+    two_sided: bool = False,
 ) -> NDArray[np.float64]:
     """Spherical-harmonic coefficients ``F^l`` of the EGI (eq. real_fourier_transform_fr).
 
@@ -105,6 +106,10 @@ def coefficients(
         Use the paper's ``2B x 2B`` histogram (True) or the exact projection (False).
     sigma : float
         Heat-kernel smoothing width, radians.
+    two_sided : bool
+        Count each normal both ways, ``n`` and ``-n`` with half its weight each (the EGI
+        of a surface whose sides are not told apart): as ``S_lm(-n) = (-1)^l S_lm(n)``,
+        the odd degrees vanish and the even ones are unchanged.
 
     Returns
     -------
@@ -117,6 +122,8 @@ def coefficients(
         F = sht(density, bandwidth)
     else:
         F = project(_unit(normals), weights, bandwidth)
+    if two_sided:
+        F[1::2] = 0.0
     return smooth(F, sigma) if sigma > 0 else F
 
 

@@ -65,3 +65,24 @@ def test_harmonics_table_gives_the_coefficients_of_any_weighted_subset():
         egi.coefficients(normals[subset], 12, weights=weights),
         atol=1e-12,
     )
+
+
+@pytest.mark.parametrize("binned", [False, True])
+def test_two_sided_egi_has_only_even_degrees_and_ignores_signs(rng, binned):
+    """Each normal counted both ways at half weight: the odd degrees vanish, the even ones
+    are the one-sided EGI's, and flipping any normal changes nothing."""
+    B = 10
+    normals = rng.normal(size=(400, 3))
+    weights = rng.random(400)
+    one = egi.coefficients(normals, B, weights=weights, binned=binned)
+    two = egi.coefficients(normals, B, weights=weights, binned=binned, two_sided=True)
+    assert np.abs(one[1::2]).max() > 1e-3  # a one-sided EGI has odd degrees
+    np.testing.assert_array_equal(two[1::2], 0.0)
+    np.testing.assert_array_equal(two[0::2], one[0::2])
+    flips = rng.choice([-1.0, 1.0], size=(400, 1))
+    flipped = egi.coefficients(normals * flips, B, weights=weights, binned=binned, two_sided=True)
+    np.testing.assert_allclose(flipped, two, atol=1e-10)
+    if not binned:  # the definition: n and -n, half the weight each
+        both = np.vstack([normals, -normals])
+        halves = np.r_[weights, weights] / 2
+        np.testing.assert_allclose(egi.coefficients(both, B, weights=halves), two, atol=1e-10)
