@@ -14,7 +14,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from .normals import faces, orient, view_direction
-from .signs import SIGN_DISAGREEMENT, sign_disagreement
+from .signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
@@ -184,20 +184,28 @@ class CloudReading:
     normals_from : {"given", "re-oriented", "estimated"}
         The caller's normals, as given or with their signs chosen again (neighbours
         disagreed, :func:`o3d_spectral.signs.sign_disagreement`), or estimated.
-    orientation : {"camera", "sensor frame", "surface"} or None
+    orientation : {"camera", "sensor frame", "hemisphere", "surface"} or None
         The rule that chose their signs (:func:`o3d_spectral.normals.orient`); None for
         normals used as given.
     view : ndarray, shape (3,), or None
         Unit direction towards the sensor when the normals say the cloud is a single
         view, in the cloud's frame: towards the frame's origin when its normals face it
         (a view in its sensor's frame), else :func:`o3d_spectral.normals.view_direction`;
-        None otherwise.
+        None otherwise (always for a two-sided cloud).
     sign_disagreement : float or None
         For given normals: the share of neighbours whose normals point to opposite sides
         (:func:`o3d_spectral.signs.sign_disagreement`).
     flatness : float
         Length of the mean unit normal: 1 when all normals are alike (a plane, whose
         EGI leaves the rotation about it free), near 0 for a closed surface.
+    two_sided : bool
+        The given normals disagree between neighbours because they point away from each
+        other (:func:`o3d_spectral.signs.back_to_back`): the two faces of walls thinner
+        than the points' spacing (a bowl, a mug), which at the voxel scale are one sheet
+        a sensor may see from either side. Their signs are then not used: the EGI holds
+        each normal both ways (:func:`o3d_spectral.egi.coefficients`, ``two_sided``) and
+        a sensor sees every surface, turned to face it
+        (:meth:`o3d_spectral.SpectralStepper.visible`).
     """
 
     normals_from: str = "given"
@@ -205,6 +213,7 @@ class CloudReading:
     view: NDArray[np.float64] | None = None
     sign_disagreement: float | None = None
     flatness: float = 0.0
+    two_sided: bool = False
 
     def turned(self, rotation: NDArray[np.float64]) -> CloudReading:
         """The same reading of the cloud turned by ``rotation`` (3, 3)."""
@@ -252,19 +261,36 @@ def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> N
 def _signs_checked(
     arrays: CloudArrays, voxel_size: float, camera_location: ArrayLike | None,
     origin: ArrayLike | None,
-) -> tuple[CloudArrays, str | None, float]:
+) -> tuple[CloudArrays, str | None, float, bool]:
     """Given normals as they are when their signs agree along the surface; otherwise
-    re-oriented with the rule :func:`o3d_spectral.normals.orient` names (returned, with
-    the share of neighbours that disagreed)."""
+    with their signs chosen again by :func:`o3d_spectral.normals.orient`. Returned with
+    the rule that chose them (None: as given, or two-sided), the share of neighbours
+    that disagreed and whether the cloud is two-sided (its disagreeing neighbours back to
+    back, :data:`o3d_spectral.signs.THIN_WALLS`: the signs are then chosen only so that
+    the normals averaged per voxel do not cancel, and are not used otherwise)."""
     disagreement = sign_disagreement(arrays.points, arrays.normals)
     if disagreement <= SIGN_DISAGREEMENT:
-        return arrays, None, disagreement
+        return arrays, None, disagreement, False
+    two_sided = back_to_back(arrays.points, arrays.normals) >= THIN_WALLS
     lengths = np.linalg.norm(arrays.normals, axis=1, keepdims=True)
     unit = np.divide(arrays.normals, lengths, out=np.zeros_like(arrays.normals),
                      where=lengths > 1e-12)
     normals, rule = orient(arrays.points, unit, voxel_size, camera_location=camera_location,
                            origin=origin)
-    return CloudArrays(arrays.points, normals * lengths), rule, disagreement
+    oriented = CloudArrays(arrays.points, normals * lengths)
+    return oriented, None if two_sided else rule, disagreement, two_sided
+
+
+def _view(
+    points: NDArray[np.float64], normals: NDArray[np.float64], voxel_size: float,
+    origin: ArrayLike | None,
+) -> NDArray[np.float64] | None:
+    """:attr:`CloudReading.view` of unit ``normals`` (K, 3) at ``points`` (metres)."""
+    sensor = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
+    toward = sensor - points.mean(axis=0)
+    if faces(points, normals, sensor) and np.linalg.norm(toward) > voxel_size:  # seen from there
+        return toward / np.linalg.norm(toward)
+    return view_direction(points, normals, voxel_size)  # a search (0.07 s on a view)
 
 
 def prepare(
@@ -283,13 +309,15 @@ def prepare(
     Given normals are used point by point, unaveraged, so that the EGI of a rotated copy
     of a cloud is exactly the rotated EGI (every point counts once: down-sample a cloud
     of very uneven density first); when their signs disagree along the surface they are
-    oriented again. When the cloud has no normals they are estimated on the cloud
-    averaged per cell of ``egi_voxel_size`` (PCA over ``normal_radius``, 30 neighbours at
-    most). Either way the signs are chosen by :func:`o3d_spectral.normals.orient`:
-    towards ``camera_location`` when given; towards the origin when the cloud is a depth
-    map seen from an origin outside it (a scan in its sensor's frame); else consistently
-    along the surface and outward from the centroid. The voxel grid's points are the
-    cloud averaged per voxel of ``voxel_size``.
+    oriented again, or, when they disagree back to back (walls thinner than the points'
+    spacing), the cloud is read two-sided (:attr:`CloudReading.two_sided`: signs chosen
+    only for the per-voxel means, and no view). When the cloud has no normals they are
+    estimated on the cloud averaged per cell of ``egi_voxel_size`` (PCA over
+    ``normal_radius``, 30 neighbours at most). Either way the signs are chosen by
+    :func:`o3d_spectral.normals.orient`: towards ``camera_location`` when given; towards
+    the origin when the cloud is a depth map seen from an origin outside it (a scan in
+    its sensor's frame); else consistently along the surface and outward from the
+    centroid. The voxel grid's points are the cloud averaged per voxel of ``voxel_size``.
 
     Parameters
     ----------
@@ -321,9 +349,11 @@ def prepare(
         (nearly) collinear.
     """
     arrays = _without_isolated(arrays, voxel_size, name)
-    normals_from, rule, disagreement = "given", None, None
+    normals_from, rule, disagreement, two_sided = "given", None, None, False
     if arrays.normals is not None:
-        arrays, rule, disagreement = _signs_checked(arrays, voxel_size, camera_location, origin)
+        arrays, rule, disagreement, two_sided = _signs_checked(
+            arrays, voxel_size, camera_location, origin
+        )
         normals_from = "given" if rule is None else "re-oriented"
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
     coarse = fine.voxel_down_sample(voxel_size)
@@ -354,11 +384,6 @@ def prepare(
         keep = keep[np.linspace(0, len(keep) - 1, max_egi_points).astype(np.int64)]
     unit, where = normals[keep] / length[keep, None], normal_points[keep].copy()
     flatness = float(np.linalg.norm(unit.mean(axis=0)))
-    sensor = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
-    toward = sensor - where.mean(axis=0)
-    if faces(where, unit, sensor) and np.linalg.norm(toward) > voxel_size:  # seen from there
-        view = toward / np.linalg.norm(toward)
-    else:  # search (0.07 s on a view)
-        view = view_direction(where, unit, voxel_size)
-    reading = CloudReading(normals_from, rule, view, disagreement, flatness)
+    view = None if two_sided else _view(where, unit, voxel_size, origin)  # both sides: no view
+    reading = CloudReading(normals_from, rule, view, disagreement, flatness, two_sided)
     return PreparedCloud(points, point_normals, unit, where, reading)

@@ -6,6 +6,8 @@ to :attr:`o3d_spectral.SpectralRegistrationResult.warnings`:
 - the control law stopped at ``max_iteration`` before converging;
 - a cloud's given normals pointed to opposite sides between neighbours and were oriented
   again (an estimate with no orientation step);
+- a cloud was read two-sided: its neighbours' normals pointed away from each other (walls
+  thinner than the points' spacing), and its surfaces are matched seen from either side;
 - a cloud's normals are nearly all alike (a plane): its EGI leaves the rotation about
   them free;
 - the global search's confidence is low (:data:`LOW_CONFIDENCE`).
@@ -50,12 +52,19 @@ def registration_warnings(
         found.append(f"the control law stopped at max_iteration={max_iteration} before "
                      "converging")
     for name, reading in readings.items():
+        share = f"{100 * (reading.sign_disagreement or 0.0):.0f}%"
         if reading.normals_from == "re-oriented":
             found.append(
-                f"{name}: {100 * (reading.sign_disagreement or 0.0):.0f}% of neighbouring "
-                f"normals pointed to opposite sides (an estimate with no orientation "
-                f"step?); they were oriented again ({reading.orientation}): pass "
-                "consistently oriented normals, or CloudOption(camera_location=...)")
+                f"{name}: {share} of neighbouring normals pointed to opposite sides (an "
+                f"estimate with no orientation step?); they were oriented again "
+                f"({reading.orientation}): pass consistently oriented normals, or "
+                "CloudOption(camera_location=...)")
+        if reading.two_sided:
+            found.append(
+                f"{name}: {share} of neighbouring normals pointed to opposite sides, away "
+                "from each other (walls thinner than the points' spacing, as a bowl's or a "
+                "mug's): read two-sided, its surfaces matched as seen from either side "
+                "(its EGI does not tell a wall's inside from its outside)")
         if reading.flatness >= FLAT:
             found.append(f"{name}: its normals are nearly all alike (a plane?): the "
                          "rotation about them is not constrained by its EGI")

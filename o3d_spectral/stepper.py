@@ -125,10 +125,12 @@ class SpectralStepper:
         )
         self.target_points = prepared.points
         self.target_normals, self.target_normal_points = prepared.normals, prepared.normal_points
-        self.normals_centre = prepared.normal_points.mean(axis=0)
-        self.target_coefficients = self._smoothed_levels(self._egi(prepared.normals))
-        self.viewpoint = self._viewpoint(prepared)
         self.target_reading = prepared.reading
+        self.normals_centre = prepared.normal_points.mean(axis=0)
+        self.target_coefficients = self._smoothed_levels(
+            self._egi(prepared.normals, two_sided=prepared.reading.two_sided)
+        )
+        self.viewpoint = self._viewpoint(prepared)
 
     @property
     def levels(self) -> int:
@@ -157,18 +159,23 @@ class SpectralStepper:
         return cKDTree(self.target_normal_points)
 
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
-        """Sensor position of a single-view target, or None (see ``target_viewpoint``)."""
+        """Sensor position of a single-view target, or None (see ``target_viewpoint``;
+        never found for a two-sided target, which is no view)."""
         choice = self.cloud.target_viewpoint
         if choice is None or not isinstance(choice, str):
             return None if choice is None else np.asarray(choice, dtype=np.float64)
+        if target.reading.two_sided:
+            return None
         return sensor_position(target.points, target.point_normals, target.reading.view,
                                self.frame_origin)
 
     def _egi(
-        self, normals: NDArray[np.float64], weights: NDArray[np.float64] | None = None
+        self, normals: NDArray[np.float64], weights: NDArray[np.float64] | None = None, *,
+        two_sided: bool = False,
     ) -> NDArray[np.float64]:
         return egi_coefficients(
-            normals, self.option.bandwidth, weights=weights, binned=self.option.egi_binned
+            normals, self.option.bandwidth, weights=weights, binned=self.option.egi_binned,
+            two_sided=two_sided,
         )
 
     def _smooth(self, raw: NDArray[np.float64], level: int) -> NDArray[np.float64]:
@@ -207,8 +214,8 @@ class SpectralStepper:
         fits = len(points) * B * (2 * B - 1) * 8 <= MAX_HARMONICS_TABLE
         if self._culls(reading) and not self.option.egi_binned and fits:
             table = harmonics_table(point_normals, B)
-        return MovingCloud(points, point_normals, centroid, radius, self._egi(normals), table,
-                           reading)
+        F = self._egi(normals, two_sided=reading.two_sided)
+        return MovingCloud(points, point_normals, centroid, radius, F, table, reading)
 
     def sees(self, moving: MovingCloud) -> bool:
         """Whether the moving cloud is matched as the fixed cloud's sensor would see it:
@@ -243,7 +250,8 @@ class SpectralStepper:
         if kept.sum() < MIN_POINTS or kept.mean() > FOCUS_SHARE:
             return self
         out = copy.copy(self)
-        out.target_coefficients = self._smoothed_levels(self._egi(self.target_normals[kept]))
+        focused = self._egi(self.target_normals[kept], two_sided=self.target_reading.two_sided)
+        out.target_coefficients = self._smoothed_levels(focused)
         out.normals_centre = self.target_normal_points[kept].mean(axis=0)
         return out
 
@@ -253,14 +261,17 @@ class SpectralStepper:
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None, NDArray[np.float64] | None]:
         """The moving cloud's points at the pose ``x -> R (x - c) + c + T``, less those
         facing away from the fixed cloud's sensor when it is a single view; the mask and
-        the cosines of incidence (None when nothing is culled)."""
+        the cosines of incidence (None when nothing is culled). A two-sided cloud
+        (:attr:`o3d_spectral.cloud.CloudReading.two_sided`) faces the sensor with either
+        side: none of its points is culled, and a negative cosine says the sensor sees
+        the side its normal points away from."""
         moved = moving.posed(R, T)
         if not self.sees(moving):
             return moved, None, None
         rays = self.viewpoint - moved
         cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
         cosine /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
-        toward = cosine > 0.0
+        toward = (cosine != 0.0) if moving.reading.two_sided else (cosine > 0.0)
         if toward.sum() < MIN_POINTS:
             return moved, None, None
         return moved[toward], toward, cosine
@@ -286,7 +297,10 @@ class SpectralStepper:
         where the sensor is seen from the fixed cloud's normals (their centroid), and
         normalised over that visible part
         (:func:`o3d_spectral.so3fft.visible_correlation_grid`), the correlation the law
-        climbs there. Otherwise the plain ``C_r`` of the whole EGIs
+        climbs there. A two-sided moving cloud is seen the same way: each normal ``n``
+        seen with weight ``|n . d|``, turned to face the sensor, is at ``m`` facing it
+        ``(m . d) (f(m) + f(-m))``, twice the cosine-weighted two-sided EGI (its
+        coefficients). Otherwise the plain ``C_r`` of the whole EGIs
         (:func:`o3d_spectral.so3fft.correlation_grid`).
         """
         G = self.target_coefficients[level]
@@ -335,14 +349,22 @@ class SpectralStepper:
         return Evaluation.of(placed.shift, step, local, placed.peak, placed.cost)
 
     def _visible_egi(
-        self, moving: MovingCloud, toward: NDArray[np.bool_], weights: NDArray[np.float64]
+        self, moving: MovingCloud, toward: NDArray[np.bool_], cosine: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         """EGI coefficients of the moving cloud's point normals selected by ``toward``,
-        weighted by ``weights`` (in the cloud's own frame: the pose turns them later)."""
+        each turned to face the sensor and weighted by the magnitude of its ``cosine`` of
+        incidence (in the cloud's own frame: the pose turns them later). Only a two-sided
+        cloud has negative cosines: its turned normals keep the even degrees of
+        ``|cosine|`` and take the odd ones of ``cosine`` (``S_lm(-n) = (-1)^l S_lm(n)``)."""
+        weights = np.abs(cosine)
         if moving.harmonics is None:
-            return self._egi(moving.point_normals[toward], weights)
+            facing = moving.point_normals[toward] * np.where(cosine < 0.0, -1.0, 1.0)[:, None]
+            return self._egi(facing, weights)
         B = self.option.bandwidth
-        return (weights @ moving.harmonics[toward]).reshape(B, 2 * B - 1)
+        F = (weights @ moving.harmonics[toward]).reshape(B, 2 * B - 1)
+        if moving.reading.two_sided:
+            F[1::2] = (cosine @ moving.harmonics[toward]).reshape(B, 2 * B - 1)[1::2]
+        return F
 
     def increments(
         self, evaluation: Evaluation

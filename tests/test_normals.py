@@ -76,6 +76,28 @@ def test_thin_walls_disagree_back_to_back_and_unoriented_signs_do_not():
         assert back_to_back(p, random) < 0.5 * THIN_WALLS
 
 
+def test_a_thin_walled_cloud_is_read_two_sided_and_others_are_not():
+    """Thin walls: two-sided, normals as given (their signs unused), no view. A closed
+    sphere with outward normals is read as given, one-sided; with random signs, and the
+    cup's outer face with random signs, they are oriented again, one-sided."""
+    cup = prepare(as_arrays(np.hstack(thin_walled_cup(wall=0.002))), VOXEL)
+    assert cup.reading.two_sided
+    assert (cup.reading.normals_from, cup.reading.orientation) == ("given", None)
+    assert cup.reading.view is None
+    points = _sphere()
+    outward = points / 0.05
+    signs = np.random.default_rng(5).choice([-1.0, 1.0], size=(len(points), 1))
+    sphere = prepare(as_arrays(np.hstack([points, outward])), VOXEL).reading
+    assert not sphere.two_sided and sphere.normals_from == "given"
+    shuffled = prepare(as_arrays(np.hstack([points, outward * signs])), VOXEL).reading
+    assert not shuffled.two_sided and shuffled.normals_from == "re-oriented"
+    p, n = thin_walled_cup(wall=0.002)
+    outer = (n[:, 2] == 0.0) & (np.einsum("ij,ij->i", p, n) > 0.0)
+    flipped = n[outer] * np.random.default_rng(6).choice([-1.0, 1.0], size=(outer.sum(), 1))
+    face = prepare(as_arrays(np.hstack([p[outer], flipped])), VOXEL)
+    assert not face.reading.two_sided and face.reading.normals_from == "re-oriented"
+
+
 def test_orient_towards_a_camera_and_outward_on_a_model():
     points = _sphere()
     outward = points / np.linalg.norm(points, axis=1, keepdims=True)

@@ -1,11 +1,15 @@
 """The stepper: the fixed spectra, the windowed translation search, the focused EGI and
 the rotation correlation over SO(3)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from tests.conftest import sample_model
+from o3d_spectral.egi import harmonics_table
+from tests.conftest import sample_model, thin_walled_cup
 
 
 def test_stepper_rejects_bad_voxel_size():
@@ -103,3 +107,32 @@ def test_visible_correlation_ranks_the_rotation_of_a_view_first():
         right = np.flatnonzero(np.asarray(errors) < 15.0)
         ranks[visibility] = int(right[0]) if len(right) else None
     assert ranks == {True: 0, False: 6}
+
+
+def test_a_two_sided_cloud_is_seen_from_either_side():
+    """A thin-walled cup against a view of its inside from above: none of the cup's
+    points is culled, each normal is turned to face the sensor, and the law's evaluation
+    does not depend on the signs of the cup's normals (the table of harmonics and the
+    normals projected anew agree)."""
+    points, normals = thin_walled_cup(wall=0.002)
+    inside = (normals[:, 2] > 0.5) | (np.einsum("ij,ij->i", points, normals) < 0.0)
+    T = np.array([0.3, 0.1, 0.9])
+    view = np.hstack([points[inside] + T, normals[inside]])
+    sensor = o3d_spectral.CloudOption(target_viewpoint=tuple(T + [0.0, 0.0, 0.5]))
+    stepper = o3d_spectral.SpectralStepper(view, 0.008, cloud=sensor)
+    moving = stepper.moving(np.hstack([points, normals]))
+    assert moving.reading.two_sided and moving.harmonics is not None
+    R = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix()
+    _, toward, cosine = stepper.visible(moving, R, T)
+    assert toward.all() and np.mean(cosine < 0.0) > 0.2  # seen from behind, kept
+    one_sided = replace(moving, reading=replace(moving.reading, two_sided=False))
+    assert not stepper.visible(one_sided, R, T)[1].all()
+    flips = np.random.default_rng(7).choice([-1.0, 1.0], size=(len(moving.point_normals), 1))
+    flipped = moving.point_normals * flips
+    variants = [replace(moving, harmonics=None),
+                replace(moving, point_normals=flipped, harmonics=harmonics_table(flipped, 16))]
+    expected = stepper.evaluate(moving, R, T)
+    for variant in variants:
+        found = stepper.evaluate(variant, R, T)
+        np.testing.assert_allclose(found.rotation, expected.rotation, atol=1e-10)
+        assert found.correlation == pytest.approx(expected.correlation, abs=1e-12)

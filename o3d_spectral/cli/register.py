@@ -119,7 +119,8 @@ def _viewpoint(text: str) -> str | tuple[float, ...] | None:
 def _reading(reading) -> dict:
     """A CloudReading as JSON values."""
     view = None if reading.view is None else np.asarray(reading.view).tolist()
-    return {"from": reading.normals_from, "orientation": reading.orientation, "view": view}
+    return {"from": reading.normals_from, "orientation": reading.orientation, "view": view,
+            "two_sided": reading.two_sided}
 
 
 def run(args: argparse.Namespace) -> int:
