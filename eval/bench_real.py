@@ -11,7 +11,7 @@ group's voxel size (``real.VOXEL_SIZES``). Normal modes (``real.with_normals``):
 * spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults;
 * FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial), seeded per case; its
   point-to-plane ICP needs target normals: when the target has none the method estimates
-  them (``harness.methods.with_target_normals``: 2 voxels, 30 neighbours) inside the timed
+  them (``harness.tutorial.with_target_normals``: 2 voxels, 30 neighbours) inside the timed
   call.
 
 Success: rotation error < 5 deg and translation error at the source centroid < 1 cm

@@ -9,7 +9,7 @@ caches first.
 * FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial: FPFH + RANSAC, then
   point-to-plane ICP on the full clouds, seeded as the harness seeds it). Its ICP needs
   target normals: when the target has none (the real cases), the method estimates them
-  *inside the timed call* (``harness.methods.with_target_normals``: radius 2 voxels, 30
+  *inside the timed call* (``harness.tutorial.with_target_normals``: radius 2 voxels, 30
   neighbours, on a copy), so both methods start from the same normal-free input.
 
 Groups and voxel sizes:

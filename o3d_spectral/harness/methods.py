@@ -39,7 +39,14 @@ from o3d_spectral import (
     registration_spectral,
     registration_spectral_global,
 )
-from o3d_spectral.refinement import TUTORIAL_DISTANCE, point_to_plane_refinement
+from o3d_spectral.harness.tutorial import (
+    FPFH,
+    RANSAC,
+    REFINEMENT,
+    global_then_refine,
+    open3d_fields,
+    ransac_matcher,
+)
 from o3d_spectral.registration import DEFAULT_REFINEMENT
 
 __all__ = [
@@ -209,57 +216,20 @@ register_spectral_variant(  # the search without search_visibility and focus_pla
 )
 
 
-def _open3d_fields(options, names: tuple[str, ...]) -> dict:
-    """The named attributes of an Open3D options object, as a dict."""
-    return {name: getattr(options, name) for name in names}
-
-
 #: The ICP baselines' settings (distances in voxels).
 _ICP_SETTINGS = {
     "init": "identity",
     "down_sample_voxels": 1.0,
     "max_correspondence_distance_voxels": ICP_DISTANCE_VOXELS,
-    "criteria": _open3d_fields(
+    "criteria": open3d_fields(
         _reg.ICPConvergenceCriteria(max_iteration=ICP_MAX_ITERATION),
         ("max_iteration", "relative_fitness", "relative_rmse"),
     ),
 }
 
-#: The global-registration tutorial's FPFH features (sizes in voxels).
-_FPFH = {
-    "down_sample_voxels": 1.0,
-    "normal_radius_voxels": 2.0,
-    "normal_max_nn": 30,
-    "feature_radius_voxels": 5.0,
-    "feature_max_nn": 100,
-}
-
-#: The tutorial's refinement after a global registration, on the full clouds
-#: (:func:`o3d_spectral.registration.point_to_plane_refinement`).
-_REFINEMENT = {
-    "estimation": "point_to_plane",
-    "max_correspondence_distance_voxels": TUTORIAL_DISTANCE,
-    "criteria": _open3d_fields(
-        _reg.ICPConvergenceCriteria(), ("max_iteration", "relative_fitness", "relative_rmse")
-    ),
-}
-
-#: FPFH-RANSAC's matching (the tutorial's; distances in voxels).
-_RANSAC = {
-    "mutual_filter": True,
-    "max_correspondence_distance_voxels": 1.5,
-    "estimation": "point_to_point",
-    "with_scaling": False,
-    "ransac_n": 3,
-    "edge_length_checker": 0.9,
-    "distance_checker_voxels": 1.5,
-    "max_iteration": 100000,
-    "confidence": 0.999,
-}
-
 #: FGR's options: the correspondence distance in voxels, Open3D's defaults for the rest.
 _FGR_DISTANCE_VOXELS = 0.5
-_FGR = {"maximum_correspondence_distance_voxels": _FGR_DISTANCE_VOXELS} | _open3d_fields(
+_FGR = {"maximum_correspondence_distance_voxels": _FGR_DISTANCE_VOXELS} | open3d_fields(
     _reg.FastGlobalRegistrationOption(),
     (
         "decrease_mu",
@@ -307,86 +277,8 @@ def icp_point_to_plane(source, target, voxel_size: float, seed: int) -> tuple[np
     )
 
 
-def _fpfh(cloud: o3d.geometry.PointCloud, voxel_size: float, features: dict = _FPFH):
-    """FPFH features (the global-registration tutorial's by default): down-sample at ``v``,
-    normals with radius ``normal_radius_voxels * v`` (``2v``), FPFH with radius
-    ``feature_radius_voxels * v`` (``5v``)."""
-    down = cloud.voxel_down_sample(features["down_sample_voxels"] * voxel_size)
-    down.estimate_normals(
-        o3d.geometry.KDTreeSearchParamHybrid(
-            radius=features["normal_radius_voxels"] * voxel_size, max_nn=features["normal_max_nn"]
-        )
-    )
-    feature = _reg.compute_fpfh_feature(
-        down,
-        o3d.geometry.KDTreeSearchParamHybrid(
-            radius=features["feature_radius_voxels"] * voxel_size,
-            max_nn=features["feature_max_nn"],
-        ),
-    )
-    return down, feature
-
-
-def global_then_refine(
-    source, target, voxel_size: float, seed: int, match, features: dict = _FPFH
-) -> np.ndarray:
-    """FPFH features of both clouds (``features``: sizes in voxels, the tutorial's by
-    default), the global registration ``match(source_down, target_down, source_fpfh,
-    target_fpfh)`` (seeded), then the tutorial's point-to-plane refinement on the full
-    clouds (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
-    estimate. A target without normals gets them first (:func:`with_target_normals`)."""
-    target = with_target_normals(target, voxel_size)
-    source_down, source_fpfh = _fpfh(source, voxel_size, features)
-    target_down, target_fpfh = _fpfh(target, voxel_size, features)
-    o3d.utility.random.seed(seed)
-    coarse = match(source_down, target_down, source_fpfh, target_fpfh)
-    return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
-
-
-def with_target_normals(
-    target: o3d.geometry.PointCloud, voxel_size: float
-) -> o3d.geometry.PointCloud:
-    """``target``, or, when it has no normals (a raw scan), a copy with normals estimated
-    as the tutorial's features' are (radius ``normal_radius_voxels`` voxels of
-    ``voxel_size``, metres; ``normal_max_nn`` neighbours): the tutorial's point-to-plane
-    refinement needs them. Called inside the methods, so the estimate is in their time."""
-    if target.has_normals():
-        return target
-    target = o3d.geometry.PointCloud(target)
-    target.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(
-        radius=_FPFH["normal_radius_voxels"] * voxel_size, max_nn=_FPFH["normal_max_nn"]
-    ))
-    return target
-
-
-def ransac_matcher(voxel_size: float):
-    """The tutorial's RANSAC on FPFH matches (:data:`_RANSAC`), as a ``match`` for
-    :func:`global_then_refine`."""
-    distance = _RANSAC["max_correspondence_distance_voxels"] * voxel_size
-    checkers = [
-        _reg.CorrespondenceCheckerBasedOnEdgeLength(_RANSAC["edge_length_checker"]),
-        _reg.CorrespondenceCheckerBasedOnDistance(_RANSAC["distance_checker_voxels"] * voxel_size),
-    ]
-
-    def ransac(source_down, target_down, source_fpfh, target_fpfh):
-        return _reg.registration_ransac_based_on_feature_matching(
-            source_down,
-            target_down,
-            source_fpfh,
-            target_fpfh,
-            _RANSAC["mutual_filter"],
-            distance,
-            _reg.TransformationEstimationPointToPoint(_RANSAC["with_scaling"]),
-            _RANSAC["ransac_n"],
-            checkers,
-            _reg.RANSACConvergenceCriteria(_RANSAC["max_iteration"], _RANSAC["confidence"]),
-        )
-
-    return ransac
-
-
 @register_method(
-    "fpfh_ransac", settings={"features": _FPFH, "ransac": _RANSAC, "refinement": _REFINEMENT}
+    "fpfh_ransac", settings={"features": FPFH, "ransac": RANSAC, "refinement": REFINEMENT}
 )
 def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
@@ -397,7 +289,7 @@ def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarra
     return global_then_refine(source, target, voxel_size, seed, ransac_matcher(voxel_size)), {}
 
 
-@register_method("fgr", settings={"features": _FPFH, "fgr": _FGR, "refinement": _REFINEMENT})
+@register_method("fgr", settings={"features": FPFH, "fgr": _FGR, "refinement": REFINEMENT})
 def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
     """Open3D Fast Global Registration on the tutorial's FPFH features (distance
     ``0.5 v``), then the same point-to-plane ICP refinement."""

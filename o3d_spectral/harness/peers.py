@@ -25,6 +25,7 @@ import importlib.util
 import numpy as np
 
 from o3d_spectral.harness import methods as _methods
+from o3d_spectral.harness import tutorial
 from o3d_spectral.harness.selection import TUNING_SPLIT
 from o3d_spectral.refinement import point_to_plane_refinement
 
@@ -37,7 +38,7 @@ KISS_MATCHER = {
     "down_sample_voxels": 1.0,
     "resolution_voxels": 1.0,
     "config": "KISSMatcherConfig defaults otherwise (normal_r_gain 3, fpfh_r_gain 5, ...)",
-    "refinement": _methods._REFINEMENT,
+    "refinement": tutorial.REFINEMENT,
 }
 
 #: small_gicp's GICP (distances in voxels); the convergence tolerances are its defaults.
@@ -63,7 +64,7 @@ FPFH_TUNING_GRID = {
 #: tuning split of the seed-0 suites (240 instances; 52.1% against the tutorial's 43.3%;
 #: docs/results/fpfh_tuning.txt). 1 voxel is the smallest normal radius that still finds
 #: neighbours on clouds down-sampled at the voxel size.
-TUNED_FPFH = _methods._FPFH | {"feature_radius_voxels": 3.5, "normal_radius_voxels": 1.0}
+TUNED_FPFH = tutorial.FPFH | {"feature_radius_voxels": 3.5, "normal_radius_voxels": 1.0}
 
 
 def _available(module: str) -> bool:
@@ -92,7 +93,7 @@ def kiss_matcher(source, target, voxel_size: float, seed: int) -> tuple[np.ndarr
     if solution.valid:
         coarse[:3, :3] = np.asarray(solution.rotation, dtype=np.float64)
         coarse[:3, 3] = np.asarray(solution.translation, dtype=np.float64).ravel()
-    target = _methods.with_target_normals(target, voxel_size)
+    target = tutorial.with_target_normals(target, voxel_size)
     return point_to_plane_refinement(source, target, voxel_size, coarse), {}
 
 
@@ -130,8 +131,8 @@ def fpfh_ransac_with(features: dict):
     """FPFH-RANSAC and the refinement, as the tutorial's but with ``features``."""
 
     def method(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-        match = _methods.ransac_matcher(voxel_size)
-        return _methods.global_then_refine(source, target, voxel_size, seed, match, features), {}
+        match = tutorial.ransac_matcher(voxel_size)
+        return tutorial.global_then_refine(source, target, voxel_size, seed, match, features), {}
 
     return method
 
@@ -150,8 +151,8 @@ def _register() -> None:
         "features": TUNED_FPFH,
         "tuning_split": TUNING_SPLIT,
         "tuning_grid": FPFH_TUNING_GRID,
-        "ransac": _methods._RANSAC,
-        "refinement": _methods._REFINEMENT,
+        "ransac": tutorial.RANSAC,
+        "refinement": tutorial.REFINEMENT,
     }
     _methods.register_method("fpfh_ransac_tuned", settings=tuned)(fpfh_ransac_with(TUNED_FPFH))
 
