@@ -28,6 +28,9 @@ __all__ = [
 
 #: Normals are oriented along the surface over at most this many points (:func:`orient`).
 PROPAGATED_POINTS = 5000
+#: Largest move (share of the extent) of exactly cospherical points, which Qhull cannot
+#: triangulate, before their orientation is propagated (:func:`_propagated`).
+JOGGLE = 1e-6
 #: :func:`view_direction`: a single view when at least this share of its normals lie in
 #: the hemisphere about their mean, and the mean's length is at least ``VIEW_MEAN``.
 VIEW_SHARE = 0.9
@@ -274,12 +277,29 @@ def _propagated(points: NDArray[np.float64], normals: NDArray[np.float64]) -> ND
         reference = np.broadcast_to(axes[2], normals.shape)
     else:
         step = int(np.ceil(len(points) / PROPAGATED_POINTS))
-        coarse = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centred[::step]))
-        coarse.normals = o3d.utility.Vector3dVector(normals[::step])
-        coarse.orient_normals_consistent_tangent_plane(10)
-        _, nearest = cKDTree(np.asarray(coarse.points)).query(centred)
-        reference = np.asarray(coarse.normals)[nearest]
+        coarse = centred[::step]
+        _, nearest = cKDTree(coarse).query(centred)
+        reference = _consistent(coarse, normals[::step])[nearest]
     return _turned_to_face(normals, reference)
+
+
+def _consistent(points: NDArray[np.float64], normals: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Open3D's ``orient_normals_consistent_tangent_plane(10)`` on ``points`` (N, 3),
+    metres, centred. Its graph comes from a Delaunay triangulation, which Qhull refuses for
+    exactly cospherical points (a perfect sphere): those are tried again moved by
+    :data:`JOGGLE` of their extent at most (seeded), far below any normal's scale."""
+
+    def propagated(where: NDArray[np.float64]) -> NDArray[np.float64]:
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(where))
+        cloud.normals = o3d.utility.Vector3dVector(normals)
+        cloud.orient_normals_consistent_tangent_plane(10)
+        return np.asarray(cloud.normals)
+
+    try:
+        return propagated(points)
+    except RuntimeError:  # Qhull: "input sites are cocircular or cospherical"
+        jitter = np.random.default_rng(0).uniform(-1.0, 1.0, points.shape)
+        return propagated(points + JOGGLE * float(np.max(np.ptp(points, axis=0))) * jitter)
 
 
 def view_direction(

@@ -218,3 +218,15 @@ def test_each_cloud_can_name_its_own_sensor():
     assert stepper.target_reading.view[2] > 0.9 and moving.reading.view[2] < -0.9
     with pytest.raises(ValueError, match="source_camera_location"):
         o3d_spectral.CloudOption(source_camera_location=(0.0, np.nan, 1.0))
+
+
+def test_a_perfect_sphere_with_random_signs_is_oriented_outward():
+    """Exactly cospherical points, which Qhull cannot triangulate for the propagation."""
+    points = _sphere(3000, 0.1)
+    signs = np.random.default_rng(1).choice([-1.0, 1.0], size=(3000, 1))
+    cloud = np.c_[points, points / 0.1 * signs]
+    result = o3d_spectral.registration_spectral(cloud, cloud, VOXEL)
+    assert result.source_reading.normals_from == "re-oriented"
+    assert np.all(np.isfinite(result.transformation))
+    oriented, _ = orient(points, points / 0.1 * signs, VOXEL)
+    assert np.mean(np.einsum("ij,ij->i", oriented, points) > 0) > 0.99
