@@ -14,7 +14,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from .normals import faces, orient, view_direction
-from .signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
+from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
@@ -268,10 +268,10 @@ def _signs_checked(
     that disagreed and whether the cloud is two-sided (its disagreeing neighbours back to
     back, :data:`o3d_spectral.signs.THIN_WALLS`: the signs are then chosen only so that
     the normals averaged per voxel do not cancel, and are not used otherwise)."""
-    disagreement = sign_disagreement(arrays.points, arrays.normals)
+    disagreement, away = neighbour_signs(arrays.points, arrays.normals)
     if disagreement <= SIGN_DISAGREEMENT:
         return arrays, None, disagreement, False
-    two_sided = back_to_back(arrays.points, arrays.normals) >= THIN_WALLS
+    two_sided = away >= THIN_WALLS
     lengths = np.linalg.norm(arrays.normals, axis=1, keepdims=True)
     unit = np.divide(arrays.normals, lengths, out=np.zeros_like(arrays.normals),
                      where=lengths > 1e-12)

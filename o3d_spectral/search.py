@@ -112,6 +112,12 @@ def _placed(
     for R, _ in rotations:
         centre, peak, cost = stepper.locate(moving, R, around=around)
         found.append(Hypothesis(R, centre, peak, cost))
+    return _best_first(found)
+
+
+def _best_first(found: list[Hypothesis]) -> list[Hypothesis]:
+    """``found`` by placed peak height, highest first (a stable sort: equals keep their
+    order)."""
     return sorted(found, key=lambda h: -h.translation_peak)
 
 
@@ -139,7 +145,7 @@ def _focused_hypotheses(
             break
         focus = True
         ranked = ranked + hypotheses(ball, moving, search, around=located)
-    return sorted(ranked, key=lambda h: -h.translation_peak), focus
+    return _best_first(ranked), focus
 
 
 def global_search(
@@ -165,14 +171,13 @@ def global_search(
         score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
     ranked = hypotheses(stepper, moving, search)
-    if search.shell_hypotheses and stepper.two_views(moving):
-        ranked = sorted(ranked + shell_hypotheses(stepper, moving, search.shell_hypotheses),
-                        key=lambda h: -h.translation_peak)
+    two_views = stepper.two_views(moving)
+    if search.shell_hypotheses and two_views:
+        ranked = _best_first(ranked + shell_hypotheses(stepper, moving, search.shell_hypotheses))
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
-    egi_scored = not stepper.two_views(moving)
-    climbs = [h.climb(moving, egi_scored=egi_scored) for h in ranked[: search.climbs]]
+    climbs = [h.climb(moving, egi_scored=not two_views) for h in ranked[: search.climbs]]
     for state in climbs:
         if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
             near, _, _ = stepper.visible(moving, state.R, state.T)

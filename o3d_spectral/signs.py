@@ -15,7 +15,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-__all__ = ["SIGN_DISAGREEMENT", "THIN_WALLS", "sign_disagreement", "back_to_back"]
+__all__ = [
+    "SIGN_DISAGREEMENT", "THIN_WALLS", "sign_disagreement", "back_to_back", "neighbour_signs",
+]
 
 #: Given normals whose neighbours disagree in sign more often than this are re-oriented
 #: (the suites' normals from orientable meshes: at most 4.4%; Open3D's unoriented
@@ -43,8 +45,7 @@ def sign_disagreement(points: ArrayLike, normals: ArrayLike) -> float:
     points, normals : array_like, shape (N, 3)
         Metres; unit or zero normals.
     """
-    opposite, _, along = _neighbour_pairs(points, normals)
-    return float(np.mean(opposite[along])) if along.any() else 0.0
+    return neighbour_signs(points, normals)[0]
 
 
 def back_to_back(points: ArrayLike, normals: ArrayLike) -> float:
@@ -61,9 +62,21 @@ def back_to_back(points: ArrayLike, normals: ArrayLike) -> float:
     points, normals : array_like, shape (N, 3)
         Metres; unit or zero normals.
     """
+    return neighbour_signs(points, normals)[1]
+
+
+def neighbour_signs(points: ArrayLike, normals: ArrayLike) -> tuple[float, float]:
+    """:func:`sign_disagreement` and :func:`back_to_back` from one neighbour search.
+
+    Parameters
+    ----------
+    points, normals : array_like, shape (N, 3)
+        Metres; unit or zero normals.
+    """
     opposite, away, along = _neighbour_pairs(points, normals)
     disagree = opposite & along
-    return float(np.mean(away[disagree])) if disagree.any() else 0.0
+    disagreement = float(np.mean(opposite[along])) if along.any() else 0.0
+    return disagreement, float(np.mean(away[disagree])) if disagree.any() else 0.0
 
 
 def _neighbour_pairs(
