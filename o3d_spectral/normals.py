@@ -68,7 +68,7 @@ def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> 
     row = np.floor(theta / step).astype(np.int64)
     per_row = np.maximum(np.floor(2 * np.pi * np.sin((row + 0.5) * step) / step), 1.0)
     key = row * (2 * int(np.ceil(2 * np.pi / step)) + 2) + np.floor(phi / (2 * np.pi) * per_row)
-    return _behind_share(key, depth, 3.0 * voxel_size) < 0.1
+    return bool(_behind_share(key[None], depth[None], 3.0 * voxel_size)[0] < 0.1)
 
 
 def is_depth_map_along(points: ArrayLike, direction: ArrayLike, voxel_size: float) -> bool:
@@ -79,7 +79,7 @@ def is_depth_map_along(points: ArrayLike, direction: ArrayLike, voxel_size: floa
     position a thin model (scissors: 29% of rays) would pass as a view (bundled real
     views: at most 3.6%; a bowl's single-sheet model, 3.9%, passes)."""
     p = np.asarray(points, dtype=np.float64)
-    return _surfaces_behind(p, direction, voxel_size) < ALONG_SHARE
+    return bool(_surfaces_behind(p, direction, voxel_size)[0] < ALONG_SHARE)
 
 
 def sensor_direction(
@@ -131,7 +131,7 @@ def _best_direction(
     """Of ``candidates`` (K, 3), those along which ``points`` meet the fewest second
     surfaces, if under :data:`ALONG_SHARE`; of them the one seeing the normals most
     squarely (2nd percentile of ``|n . d|``); None when none qualifies."""
-    spreads = np.array([_surfaces_behind(points, d, voxel_size) for d in candidates])
+    spreads = _surfaces_behind(points, candidates, voxel_size)
     if len(spreads) == 0 or spreads.min() >= ALONG_SHARE:
         return None
     kept = candidates[spreads <= spreads.min() + 0.005]
@@ -150,27 +150,40 @@ def _turned_to(directions: NDArray[np.float64], axis: NDArray[np.float64]) -> ND
     return directions @ R.T
 
 
-def _surfaces_behind(points: NDArray[np.float64], direction: ArrayLike, voxel_size: float) -> float:
-    """Share of the rays parallel to ``direction``, half a voxel apart, holding two points
-    or more, whose depths are more than :data:`ALONG_GAP` voxels apart (1 when none
-    holds two)."""
-    d = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
-    u = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    across = np.floor(points @ np.stack([u, np.cross(d, u)], axis=1) / (0.5 * voxel_size))
-    across -= across.min(axis=0)
-    key = across[:, 0] * (across[:, 1].max() + 1) + across[:, 1]
-    return _behind_share(key, points @ d, ALONG_GAP * voxel_size)
+def _surfaces_behind(
+    points: NDArray[np.float64], directions: ArrayLike, voxel_size: float
+) -> NDArray[np.float64]:
+    """For each of ``directions`` (K, 3): the share of the rays parallel to it, half a
+    voxel apart, holding two points or more, whose depths are more than
+    :data:`ALONG_GAP` voxels apart (1 when none holds two); shape (K,)."""
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    helper = np.where((np.abs(d[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    u = np.cross(d, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    across = [np.floor(points @ axis.T / (0.5 * voxel_size)).T for axis in (u, np.cross(d, u))]
+    a, b = (c - c.min(axis=1, keepdims=True) for c in across)  # (K, N) each
+    key = a * (b.max(axis=1, keepdims=True) + 1) + b
+    return _behind_share(key, (points @ d.T).T, ALONG_GAP * voxel_size)
 
 
-def _behind_share(key: NDArray, depth: NDArray[np.float64], gap: float) -> float:
-    """Share of the rays (``key``: each point's ray) holding two points or more whose
-    depths (metres) are more than ``gap`` metres apart; 1 when no ray holds two."""
-    order = np.argsort(key, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(key[order]) != 0])
-    spread = np.maximum.reduceat(depth[order], starts) - np.minimum.reduceat(depth[order], starts)
-    shared = np.diff(np.r_[starts, len(order)]) >= 2
-    return float(np.mean(spread[shared] > gap)) if shared.any() else 1.0
+def _behind_share(key: NDArray, depth: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
+    """Per row of ``key`` (K, N: each point's ray) and ``depth`` (K, N, metres): the share
+    of the rays holding two points or more whose depths are more than ``gap`` metres
+    apart; 1 for a row where no ray holds two. Shape (K,)."""
+    rows, n = key.shape
+    order = np.argsort(key, axis=1, kind="stable")
+    key, depth = np.take_along_axis(key, order, 1), np.take_along_axis(depth, order, 1)
+    first = np.ones(key.shape, dtype=bool)
+    first[:, 1:] = np.diff(key, axis=1) != 0
+    starts = np.flatnonzero(first)  # each row starts a ray: rays never span two rows
+    depth = depth.ravel()
+    spread = np.maximum.reduceat(depth, starts) - np.minimum.reduceat(depth, starts)
+    shared = np.diff(np.r_[starts, rows * n]) >= 2
+    row = starts[shared] // n
+    total = np.bincount(row, minlength=rows)
+    behind = np.bincount(row, weights=spread[shared] > gap, minlength=rows)
+    return np.where(total > 0, behind / np.maximum(total, 1), 1.0)
 
 
 def _fibonacci_hemisphere(count: int) -> NDArray[np.float64]:
