@@ -4,9 +4,11 @@
 caches the spectra of the blocks it is correlated on, and turns a moving cloud's points
 into the shift that takes them onto the fixed cloud (paper, eq. fourier_shift_solution),
 the peak's height and the translation cost ``J_t``. Grids of the moving cloud are cubes
-large enough to hold it under any rotation; the FFT size per axis is the fixed block's
-size plus the moving grid's (rounded up to a fast length), which keeps every shift
-between the two unambiguous whatever the distance between the clouds.
+large enough to hold it under any rotation. Searched anywhere, the FFT size per axis is
+the fixed grid's size plus the moving grid's (rounded up to a fast length), which keeps
+every shift between the two unambiguous whatever the distance between the clouds; near a
+prediction (the law's iterations), it is the size of a block of the fixed grid about it,
+and only the shifts that keep the moving grid inside the block are read.
 """
 
 from __future__ import annotations
@@ -92,31 +94,37 @@ class TargetGrid:
         offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
         return Box(self.lattice, offset.astype(np.int64), (side, side, side))
 
-    @staticmethod
-    def fft_shape(fixed: Box, moving: Box) -> tuple[int, int, int]:
-        """The FFT grid on which ``moving`` is correlated with ``fixed``."""
+    def fft_shape(self, fixed: Box, moving: Box) -> tuple[int, int, int]:
+        """The FFT grid on which ``moving`` is correlated with ``fixed``: their sizes
+        summed for the whole fixed grid (every shift read unambiguously), the block's own
+        size for a window about a prediction (only the shifts keeping the moving grid in
+        the block are read: :func:`o3d_spectral.translation.cross_power_peak`'s
+        ``searched``)."""
+        if fixed is not self.box:
+            return tuple(next_fast_len(a) for a in fixed.shape)
         return tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, moving.shape, strict=True))
 
     def search_box(self, radius: float, around: ArrayLike | None = None) -> Box:
         """The block of the fixed grid a moving cloud of ``radius`` is correlated with.
 
         The whole fixed grid when ``around`` or ``window`` is None (a global search).
-        Otherwise a cube of the moving grid's side plus ``window`` voxels on each side,
-        centred near ``around`` (metres, where the moving cloud's centroid is expected:
-        snapped to a coarse step so that nearby predictions share one block and its cached
-        spectrum), when its FFT is less than half the whole grid's.
+        Otherwise a cube of the moving grid's side plus at least ``window`` voxels on each
+        side (up to the next fast FFT length), centred near ``around`` (metres, where the
+        moving cloud's centroid is expected: snapped to a coarse step so that nearby
+        predictions share one block and its cached spectrum), when its FFT is smaller than
+        the whole grid's.
         """
         if around is None or self.window is None:
             return self.box
         moving = self.moving_box(radius, np.zeros(3))
-        side = moving.shape[0] + 2 * self.window
+        side = next_fast_len(moving.shape[0] + 2 * self.window)
         snap = max(self.window // 2, 1)
         centre = (np.asarray(around, dtype=np.float64) - self.lattice.origin) / self.voxel_size
         offset = (np.round(centre / snap) * snap).astype(np.int64) - side // 2
         window = Box(self.lattice, offset, (side, side, side))
         whole = np.prod(self.fft_shape(self.box, moving), dtype=np.float64)
         windowed = np.prod(self.fft_shape(window, moving), dtype=np.float64)
-        return window if windowed < 0.5 * whole else self.box
+        return window if windowed < whole else self.box
 
     def correlate(
         self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
@@ -131,9 +139,12 @@ class TargetGrid:
         buffer = np.zeros(fft.shape, dtype=fft.dtype)
         splat(moved, box, mode=self.weighting, out=buffer)
         buffer /= np.linalg.norm(buffer)
+        if fixed is self.box:  # every shift, read unambiguously
+            bounds = {"positive_below": fixed.shape}
+        else:  # the shifts keeping the moving grid inside the block
+            bounds = {"searched": tuple(np.subtract(fft.shape, box.shape) + 1)}
         peak = cross_power_peak(
-            fft.forward(buffer), spectrum, fft, sigma=self.peak_width,
-            positive_below=fixed.shape,
+            fft.forward(buffer), spectrum, fft, sigma=self.peak_width, **bounds
         )
         shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
         return Placement(shift, peak.peak, self._cost(buffer, box))

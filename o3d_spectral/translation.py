@@ -84,11 +84,16 @@ def _full_window_sum(shape: tuple[int, int, int], sigma: float, dtype: type) -> 
     return float(total)
 
 
-def _subvoxel(values: NDArray[np.float64], index: tuple[int, ...]) -> NDArray[np.float64]:
-    """Offset in [-0.5, 0.5] of the peak from ``index`` along each axis (Gaussian fit)."""
+def _subvoxel(
+    values: NDArray[np.float64], index: tuple[int, ...], bounds: NDArray[np.int64] | None = None
+) -> NDArray[np.float64]:
+    """Offset in [-0.5, 0.5] of the peak from ``index`` along each axis (Gaussian fit);
+    none along an axis where a neighbour lies outside ``bounds`` (per axis, when given)."""
     offsets = np.zeros(3)
     for axis in range(3):
         n = values.shape[axis]
+        if bounds is not None and not 0 < index[axis] < bounds[axis] - 1:
+            continue
         around = []
         for step in (-1, 0, 1):
             i = list(index)
@@ -111,6 +116,7 @@ def cross_power_peak(
     sigma: float = 1.0,
     eps: float = 1e-6,
     positive_below: tuple[int, int, int] | None = None,
+    searched: tuple[int, int, int] | None = None,
 ) -> PeakEstimate:
     """Phase correlation of two half spectra (eqs. cross_power_spectrum, fourier_shift_solution).
 
@@ -130,6 +136,12 @@ def cross_power_peak(
         (``index - n``). Half the grid when omitted; pass the fixed grid's size when the
         two grids were zero-padded from their corners, so that shifts in
         ``[-(moving size - 1), fixed size - 1]`` are all read correctly.
+    searched : tuple of 3 int, optional
+        The peak is sought only at indices below this (per axis), each read as a
+        positive shift; replaces ``positive_below``. For a moving grid zero-padded from
+        the corner and a fixed block filling the FFT grid, ``FFT size - moving size + 1``:
+        the shifts that keep the moving grid inside the block, the only ones that do not
+        wrap around.
 
     Returns
     -------
@@ -144,13 +156,20 @@ def cross_power_peak(
     # Whitened and windowed in one pass: cross * (window / |cross|).
     cross *= np.divide(gaussian_window(fft.shape, sigma, dtype), magnitude, out=magnitude)
     delta = fft.inverse(cross)
-    index = np.unravel_index(int(np.argmax(delta)), delta.shape)
     shape = np.asarray(delta.shape)
-    limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
-    integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
+    if searched is not None:
+        bounds = np.minimum(searched, shape)
+        valid = delta[: bounds[0], : bounds[1], : bounds[2]]
+        index = np.unravel_index(int(np.argmax(valid)), valid.shape)
+        integer = np.asarray(index)
+    else:
+        bounds = None
+        index = np.unravel_index(int(np.argmax(delta)), delta.shape)
+        limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
+        integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
     # Height of a perfect match: the window's sum over the full spectrum over the grid size.
     peak = float(delta[index] * np.prod(shape) / _full_window_sum(fft.shape, sigma, dtype))
-    return PeakEstimate(integer + _subvoxel(delta, index), peak)
+    return PeakEstimate(integer + _subvoxel(delta, index, bounds), peak)
 
 
 def phase_correlation(

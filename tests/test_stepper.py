@@ -49,9 +49,31 @@ def test_windowed_search_finds_the_global_shift_on_a_smaller_grid():
     assert off.grid.search_box(off.moving(drill).radius, around=expected) is off.grid.box
 
 
-def test_window_is_not_used_where_it_would_not_shrink_the_fft():
+def test_window_is_used_where_it_shrinks_the_fft_and_agrees_with_the_whole_grid():
+    """An object against itself: the block about the prediction (its own FFT size) is
+    smaller than the padded whole grid, and reads the same shift."""
     drill = sample_model("power_drill", 2000)
+    shift = np.array([0.012, -0.021, 0.005])
     stepper = o3d_spectral.SpectralStepper(drill, 0.008)
+    moving = stepper.moving(np.asarray(drill.points) - shift)
+    window = stepper.grid.search_box(moving.radius, around=moving.centroid + shift)
+    assert window is not stepper.grid.box
+    box = stepper.grid.moving_box(moving.radius, moving.centroid)
+    whole_fft = stepper.grid.fft_shape(stepper.grid.box, box)
+    assert np.prod(stepper.grid.fft_shape(window, box)) < np.prod(whole_fft)
+    whole = stepper.evaluate(moving)
+    windowed = stepper.evaluate(moving, around=moving.centroid + shift)
+    np.testing.assert_allclose(whole.translation, shift, atol=0.1 * 0.008)
+    np.testing.assert_allclose(windowed.translation, shift, atol=0.1 * 0.008)
+
+
+def test_window_is_not_used_where_it_would_not_shrink_the_fft():
+    """A small fixed patch: the whole grid plus the moving one is smaller than a block
+    of the moving grid's size plus the window."""
+    drill = sample_model("power_drill", 2000)
+    points = np.asarray(drill.points)
+    patch = points[np.linalg.norm(points - points[0], axis=1) < 0.03]
+    stepper = o3d_spectral.SpectralStepper(patch, 0.008)
     moving = stepper.moving(drill)
     assert stepper.grid.search_box(moving.radius, around=moving.centroid) is stepper.grid.box
 

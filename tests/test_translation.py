@@ -57,6 +57,36 @@ def test_asymmetric_unwrapping():
     np.testing.assert_allclose(estimate.shift, shift, atol=1e-6)
 
 
+@pytest.mark.parametrize("shift", [(0, 0, 0), (20, 3, 11), (7, 20, 0)])
+def test_searched_shifts_keep_the_moving_grid_in_the_block(shift, rng):
+    """A moving grid (20^3) zero-padded from the corner and a fixed block (40^3) holding
+    it at ``shift``: read exactly, the searched range's edges included."""
+    n, m = 40, 20
+    pattern = rng.random((m, m, m))
+    f, g = np.zeros((n, n, n)), np.zeros((n, n, n))
+    f[:m, :m, :m] = pattern
+    g[shift[0] : shift[0] + m, shift[1] : shift[1] + m, shift[2] : shift[2] + m] = pattern
+    fft = RealFFT3(f.shape)
+    F, G = np.array(fft.forward(f)), np.array(fft.forward(g))
+    estimate = cross_power_peak(F, G, fft, searched=(n - m + 1,) * 3)
+    np.testing.assert_allclose(estimate.shift, shift, atol=1e-6)
+    assert estimate.peak > 0.9
+
+
+def test_searched_peak_never_reads_a_wrapped_shift(rng):
+    """The best match wraps around the block (shift 30 with a 20-voxel moving grid in 40):
+    the peak is read inside the searched range only."""
+    n, m = 40, 20
+    f = np.zeros((n, n, n))
+    f[:m, :m, :m] = rng.random((m, m, m))
+    g = np.roll(f, (30, 0, 0), axis=(0, 1, 2))
+    fft = RealFFT3(f.shape)
+    F, G = np.array(fft.forward(f)), np.array(fft.forward(g))
+    estimate = cross_power_peak(F, G, fft, searched=(n - m + 1,) * 3)
+    assert np.all(estimate.shift >= 0) and np.all(estimate.shift <= n - m)
+    assert estimate.peak < 0.5
+
+
 def test_mismatched_grids_rejected():
     with pytest.raises(ValueError, match="one shape"):
         phase_correlation(np.zeros((4, 4, 4)), np.zeros((4, 4, 5)))
