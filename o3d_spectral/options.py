@@ -206,6 +206,12 @@ class GlobalSearchOption:
         For two single views (two scans): peaks of the correlation of the voxel grids'
         spectra on spherical shells (:mod:`o3d_spectral.shells`) tried besides the EGI's;
         0 tries none.
+    coarse_placements : int
+        In a fixed cloud about the moving one's size (not a scene:
+        :meth:`o3d_spectral.SpectralStepper.is_scene`), the candidates are first placed
+        on grids of twice the voxel (an eighth of the FFT) and only this many, the
+        highest, are placed at full resolution; 0 places every one at full resolution.
+        Not in a scene, where clutter can outscore the object at the coarse voxel.
     """
 
     hypotheses: int = 32
@@ -216,10 +222,12 @@ class GlobalSearchOption:
     search_visibility: bool = True
     search_samples: int | None = None
     shell_hypotheses: int = 32
+    coarse_placements: int = 12
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
+        check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places"):
             check_int(name, getattr(self, name), low=1)

@@ -85,29 +85,37 @@ def hypotheses(
     grid = stepper.rotation_grid(
         moving, search.samples(stepper.option.bandwidth), visibility=search.search_visibility
     )
-    return _placed(stepper, moving, peaks(grid, count=search.hypotheses), around)
+    rotations = peaks(grid, count=search.hypotheses)
+    return _placed(stepper, moving, rotations, around, search.coarse_placements)
 
 
 def shell_hypotheses(
-    stepper: SpectralStepper, moving: MovingCloud, count: int
+    stepper: SpectralStepper, moving: MovingCloud, count: int, coarse_placements: int = 0
 ) -> list[Hypothesis]:
     """The ``count`` highest peaks over SO(3) of the correlation of the two clouds'
     spectra on spherical shells (:mod:`o3d_spectral.shells`), each placed by phase
-    correlation, highest placed peak first."""
+    correlation (the ``coarse_placements`` best of a coarse placement only, see
+    :class:`o3d_spectral.GlobalSearchOption`), highest placed peak first."""
     voxel = shell_voxel(stepper.target_points, moving.points)
     grid = correlation_grid(
         shell_coefficients(moving.points, voxel), shell_coefficients(stepper.target_points, voxel),
         n_alpha=2 * SHELL_BANDWIDTH, n_beta=2 * SHELL_BANDWIDTH,
     )
-    return _placed(stepper, moving, peaks(grid, count=count), None)
+    return _placed(stepper, moving, peaks(grid, count=count), None, coarse_placements)
 
 
 def _placed(
     stepper: SpectralStepper, moving: MovingCloud, rotations: list[tuple[NDArray, float]],
-    around: ArrayLike | None,
+    around: ArrayLike | None, coarse_placements: int = 0,
 ) -> list[Hypothesis]:
     """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
-    near ``around`` (anywhere when None), highest placed peak first."""
+    near ``around`` (anywhere when None), highest placed peak first. Placed anywhere in a
+    fixed cloud that is no scene, only the ``coarse_placements`` (when over 0) that place
+    best on the coarse grid (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
+    if around is None and 0 < coarse_placements < len(rotations) and not stepper.is_scene(moving):
+        scores = [stepper.locate(moving, R, coarse=True)[1] for R, _ in rotations]
+        best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
+        rotations = [rotations[i] for i in np.sort(best)]
     found = []
     for R, _ in rotations:
         centre, peak, cost = stepper.locate(moving, R, around=around)
@@ -173,7 +181,10 @@ def global_search(
     ranked = hypotheses(stepper, moving, search)
     two_views = stepper.two_views(moving)
     if search.shell_hypotheses and two_views:
-        ranked = _best_first(ranked + shell_hypotheses(stepper, moving, search.shell_hypotheses))
+        shells = shell_hypotheses(
+            stepper, moving, search.shell_hypotheses, search.coarse_placements
+        )
+        ranked = _best_first(ranked + shells)
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
