@@ -100,7 +100,10 @@ def refine(
     """Polish ``init`` (4, 4): :func:`point_to_plane_refinement` at ``option.distance``,
     and, with ``option.wide_distance``, the same after a first ICP with correspondences up
     to that many voxels; the one that fits better (Open3D's fitness at
-    ``option.distance``, the first of equals).
+    ``option.distance``, the first of equals). The polish runs on the whole source; the
+    wide pass, which only has to bring the pose into the polish's basin, and the fitness
+    comparisons run on the source down-sampled to one point per voxel (on a 40k-point
+    laser scan, a tenth of the time).
 
     ``init`` itself when the kept result has at most ``GUARD_SHARE`` of the inliers of
     ``init`` at ``option.distance``: from a wrong pose with few correspondences on a thin
@@ -109,15 +112,17 @@ def refine(
     ``target`` must have normals.
     """
 
+    sparse = source.voxel_down_sample(voxel_size)  # one point per voxel
+
     def fitness(transformation: NDArray[np.float64]) -> float:
         return o3d.pipelines.registration.evaluate_registration(
-            source, target, option.distance * voxel_size, transformation
+            sparse, target, option.distance * voxel_size, transformation
         ).fitness
 
     refined = point_to_plane_refinement(source, target, voxel_size, init, option.distance)
     kept = fitness(refined)
     if option.wide_distance is not None:
-        wide = point_to_plane_icp(source, target, option.wide_distance * voxel_size, init)
+        wide = point_to_plane_icp(sparse, target, option.wide_distance * voxel_size, init)
         widened = point_to_plane_refinement(source, target, voxel_size, wide, option.distance)
         if (fit := fitness(widened)) > kept:
             refined, kept = widened, fit
