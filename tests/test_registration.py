@@ -5,7 +5,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import so3
+from o3d_spectral import search, so3
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
@@ -209,6 +209,7 @@ def test_bad_input_raises_clear_errors(pair):
         (o3d_spectral.GlobalSearchOption, "climbs", 40, ValueError),
         (o3d_spectral.GlobalSearchOption, "focus_places", 0, ValueError),
         (o3d_spectral.GlobalSearchOption, "egi_focus", 1, TypeError),
+        (o3d_spectral.GlobalSearchOption, "coarse_placements", -1, ValueError),
         (o3d_spectral.RefinementOption, "wide_distance", 0.0, ValueError),
         (o3d_spectral.RefinementOption, "distance", -1.0, ValueError),
         (o3d_spectral.SpectralConvergenceCriteria, "max_iteration", 0, ValueError),
@@ -285,6 +286,39 @@ def test_global_search_recovers_a_large_rotation():
     assert 0 <= result.confidence <= scores[0]
     local = o3d_spectral.registration_spectral(source, moved_copy(source, T), VOXEL)
     assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here
+
+
+def test_coarse_placement_keeps_the_candidate_the_full_placement_ranks_first():
+    """An object against a moved copy: the 12 candidates the coarse grid ranks best hold
+    the one the full grid places best, at the same place; the same registration results."""
+    source = sample_model("power_drill", 6000)
+    T = np.eye(4)
+    T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
+    stepper = o3d_spectral.SpectralStepper(moved_copy(source, T), VOXEL)
+    moving = stepper.moving(source)
+    assert not stepper.is_scene(moving)
+    full = search.hypotheses(
+        stepper, moving, o3d_spectral.GlobalSearchOption(coarse_placements=0)
+    )
+    coarse = search.hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption())
+    assert len(full) > 12 and len(coarse) == 12  # peaks: up to 32 distinct
+    np.testing.assert_array_equal(coarse[0].rotation, full[0].rotation)
+    np.testing.assert_array_equal(coarse[0].centre, full[0].centre)
+    assert stepper.coarse_grid.voxel_size == 2 * stepper.voxel_size
+
+
+def test_a_scene_is_placed_at_full_resolution():
+    """A drill on a wide plane (a scene): every candidate is placed on the full grid."""
+    drill = sample_model("power_drill", 2000)
+    u = np.linspace(-0.6, 0.6, 61)
+    x, y = np.meshgrid(u, u)
+    plane = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -0.15)])
+    scene = np.vstack([np.asarray(drill.points), plane])
+    stepper = o3d_spectral.SpectralStepper(scene, VOXEL)
+    moving = stepper.moving(drill)
+    assert stepper.is_scene(moving)
+    found = search.hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(hypotheses=16))
+    assert len(found) == 16
 
 
 @pytest.mark.slow
