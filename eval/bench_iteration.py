@@ -3,7 +3,8 @@
 Runs the law's per-iteration work (``SpectralStepper.evaluate`` and the update, the
 translation searched about the previous prediction as ``law.climb`` does) on the mustard
 bottle at 8 mm voxels and B = 16, single-threaded, and in the same run times two 3D FFTs
-of the same grid (one forward, one inverse: the least any FFT-based iteration does). Prints medians over several runs of many iterations each, and the ratios.
+of the same grid (one forward, one inverse: the least any FFT-based iteration does).
+Prints medians over several runs of many iterations each, and the ratios.
 
 Usage: python eval/bench_iteration.py [--iterations 50] [--runs 5] [--object mustard_bottle]
 """

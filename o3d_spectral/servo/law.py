@@ -64,6 +64,8 @@ class ServoLaw:
     False), until its increments add up to a turn over ``law_reach`` (it has left the
     basin it was handed: the search starts again). The law uses the current smoothing
     level (:attr:`level`) and moves to the next finer one once the rotation step is small.
+    After its first cycle, it searches each capture's shift in a window of the reference's
+    grid about the translation the previous cycle left to do (``translation_window``).
 
     Parameters
     ----------
@@ -97,6 +99,9 @@ class ServoLaw:
         self.level = 0
         self.searching = self.search is not None
         self._turned = np.eye(3)  # the law's turn since the handover
+        # The translation the last law cycle left to do (metres): the next capture's
+        # shift is searched in a window about it (None: over the whole grid).
+        self._left: NDArray[np.float64] | None = None
 
     @property
     def finest(self) -> bool:
@@ -123,9 +128,11 @@ class ServoLaw:
             if evaluation is not None:
                 return Step(*stepper.increments(evaluation), moving.centroid, evaluation)
             self.searching = False
-        evaluation = stepper.evaluate(moving, level=self.level)
+        around = None if self._left is None else moving.centroid + self._left
+        evaluation = stepper.evaluate(moving, level=self.level, around=around)
         self.level = stepper.next_level(self.level, evaluation)
         delta_rotation, delta_translation = stepper.increments(evaluation)
+        self._left = evaluation.translation - delta_translation
         if self.search is not None:
             self._turned = delta_rotation @ self._turned
             if so3.rotation_angle(self._turned) > self.law_reach:
