@@ -206,10 +206,6 @@ def isht(coefficients: ArrayLike) -> NDArray[np.float64]:
     return np.einsum("jlm,lm->jm", P, F) @ trig.T
 
 
-#: Directions projected at once by :func:`project` (its tables stay in cache).
-PROJECTION_CHUNK = 8192
-
-
 def project(
     directions: ArrayLike, weights: ArrayLike | None, bandwidth: int
 ) -> NDArray[np.float64]:
@@ -218,6 +214,9 @@ def project(
     ``F_lm = sum_i w_i S_lm(n_i)``: the exact spherical-harmonic coefficients of the
     distribution of unit vectors ``n_i``, truncated to ``l < B``. Rotating every ``n_i``
     by ``R`` multiplies the coefficients by ``U^l(R)`` exactly (no binning error).
+    Computed in one compiled pass over the directions
+    (:func:`o3d_spectral.kernels.harmonic_sums`: no (B, B, N) Legendre table; 50k
+    normals at B = 16 in about 10 ms).
 
     Parameters
     ----------
@@ -231,27 +230,15 @@ def project(
     -------
     ndarray, shape (B, 2B - 1)
     """
+    from .kernels import harmonic_sums  # numba: imported (and compiled) on first use
+
     B = _check_bandwidth(bandwidth)
     n = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=np.float64)
-    if len(n) > PROJECTION_CHUNK:  # in chunks: the Legendre table is (B, B, N)
-        return sum(
-            project(n[i : i + PROJECTION_CHUNK], w[i : i + PROJECTION_CHUNK], B)
-            for i in range(0, len(n), PROJECTION_CHUNK)
-        )
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    P = legendre(B - 1, np.clip(n[:, 2], -1.0, 1.0))  # (l, |m|, N)
-    # exp(i m phi) for m = 0..B-1 by repeated multiplication (no trigonometric calls).
-    rho = np.hypot(n[:, 0], n[:, 1])
-    unit = np.where(rho > 1e-15, (n[:, 0] + 1j * n[:, 1]) / np.maximum(rho, 1e-300), 1.0)
-    powers = np.cumprod(np.column_stack([np.ones(len(n)), np.repeat(unit[:, None], B - 1, 1)]), 1)
-    scale = np.where(np.arange(B) > 0, np.sqrt(2.0), 1.0) * w[:, None]
-    parts = np.stack([powers.real * scale, powers.imag * scale], axis=2)  # (N, |m|, cos/sin)
-    cos_sin = np.matmul(P.transpose(1, 0, 2), parts.transpose(1, 0, 2))  # (|m|, l, 2)
-    F = np.zeros((B, 2 * B - 1))
-    F[:, B - 1 :] = cos_sin[:, :, 0].T
-    F[:, B - 2 :: -1] = cos_sin[1:, :, 1].T
-    return F
+    w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+    if len(w) != len(n):
+        raise ValueError(f"{len(w)} weights for {len(n)} directions")
+    n = np.ascontiguousarray(n / np.linalg.norm(n, axis=1, keepdims=True))
+    return harmonic_sums(n, np.ascontiguousarray(w), B)
 
 
 def degree_norms(coefficients: ArrayLike) -> NDArray[np.float64]:

@@ -1,0 +1,77 @@
+"""Compiled loops (numba) where numpy would make many passes over large temporaries.
+
+Each kernel is a plain loop over its input, compiled on first use and cached on disk
+(``cache=True``: later processes load it). The functions are pure and single-threaded;
+their callers check and shape the arguments.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["harmonic_sums"]
+
+
+@numba.njit(cache=True)
+def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
+    """Factors of the orthonormal Legendre recurrence (:func:`o3d_spectral.harmonics.legendre`):
+    sectoral ``c[m]``, and ``a[l, m]``, ``b[l, m]`` of ``P_l^m = a (x P_{l-1}^m - b P_{l-2}^m)``."""
+    c = np.empty(B)
+    c[0] = np.sqrt(1.0 / (4.0 * np.pi))
+    for m in range(1, B):
+        c[m] = c[m - 1] * np.sqrt((2 * m + 1) / (2.0 * m))
+    a, b = np.zeros((B, B)), np.zeros((B, B))
+    for l in range(2, B):  # noqa: E741
+        for m in range(l - 1):
+            a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
+            b[l, m] = np.sqrt(((l - 1) ** 2 - m * m) / (4.0 * (l - 1) ** 2 - 1.0))
+    return c, a, b
+
+
+@numba.njit(cache=True)
+def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
+    """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B`` (:func:`o3d_spectral.harmonics.project`).
+
+    Parameters
+    ----------
+    directions : ndarray, shape (N, 3)
+        Unit vectors.
+    weights : ndarray, shape (N,)
+    B : int
+        Bandwidth.
+
+    Returns
+    -------
+    ndarray, shape (B, 2B - 1)
+        Orders ``m >= 0`` (cosine terms) at column ``B - 1 + m``, ``m < 0`` (sine terms of
+        ``|m|``) at ``B - 1 - |m|``.
+    """
+    F = np.zeros((B, 2 * B - 1))
+    c, a, b = _legendre_factors(B)
+    root2 = np.sqrt(2.0)
+    for i in range(directions.shape[0]):
+        x = min(max(directions[i, 2], -1.0), 1.0)
+        s = np.sqrt(max(1.0 - x * x, 0.0))
+        rho = np.hypot(directions[i, 0], directions[i, 1])
+        cu, su = 1.0, 0.0  # (cos phi, sin phi); phi = 0 at the poles
+        if rho > 1e-15:
+            cu, su = directions[i, 0] / rho, directions[i, 1] / rho
+        cm, sm, sine_power = 1.0, 0.0, 1.0  # cos(m phi), sin(m phi), sin(theta)^m
+        for m in range(B):
+            if m > 0:
+                cm, sm = cm * cu - sm * su, cm * su + sm * cu
+                sine_power *= s
+            w = weights[i] * (root2 if m > 0 else 1.0)
+            wc, ws = w * cm, w * sm
+            before, p = 0.0, c[m] * sine_power  # P_{l-1}^m, P_l^m from l = m
+            for l in range(m, B):  # noqa: E741
+                if l == m + 1:
+                    before, p = p, np.sqrt(2.0 * m + 3.0) * x * p
+                elif l > m + 1:
+                    before, p = p, a[l, m] * (x * p - b[l, m] * before)
+                F[l, B - 1 + m] += p * wc
+                if m > 0:
+                    F[l, B - 1 - m] += p * ws
+    return F
