@@ -103,30 +103,17 @@ def splat(
     ndarray
         ``out`` (or a new array of ``box.shape``).
     """
+    from .kernels import splat_into  # numba: imported (and compiled) on first use
+
     if mode not in SPLAT_MODES:
         raise ValueError(f"mode must be one of {SPLAT_MODES}, got {mode!r}")
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     w = np.ones(len(p)) if weights is None else np.asarray(weights, dtype=np.float64)
-    shape = np.asarray(box.shape)
+    if w.shape != (len(p),):
+        raise ValueError(f"weights must have shape ({len(p)},), got {w.shape}")
     grid = np.zeros(box.shape) if out is None else out
     grid.fill(0.0)
-    full_shape = np.asarray(grid.shape)
     u = (p - box.corner) / box.lattice.voxel_size  # continuous voxel coordinates
-    if mode == "trilinear":
-        base = np.floor(u - 0.5).astype(np.int64)  # voxel whose centre is below the point
-        frac = u - 0.5 - base
-        idx_list, w_list = [], []
-        for corner in np.ndindex(2, 2, 2):
-            c = np.asarray(corner)
-            idx_list.append(base + c)
-            w_list.append(w * np.prod(np.where(c, frac, 1.0 - frac), axis=1))
-        idx, w = np.concatenate(idx_list), np.concatenate(w_list)
-    else:
-        idx = np.floor(u).astype(np.int64)
-    inside = np.all((idx >= 0) & (idx < shape), axis=1)
-    flat = np.ravel_multi_index(idx[inside].T, full_shape)
-    values = np.bincount(flat, weights=w[inside])  # up to the last occupied voxel only
-    if mode == "binary":
-        values = (values > 0).astype(np.float64)
-    grid.reshape(-1)[: len(values)] = values
+    block = grid[: box.shape[0], : box.shape[1], : box.shape[2]]
+    splat_into(block, u, w, mode == "trilinear", mode == "binary")
     return grid

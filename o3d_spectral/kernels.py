@@ -11,7 +11,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["harmonic_sums"]
+__all__ = ["harmonic_sums", "splat_into"]
 
 
 @numba.njit(cache=True)
@@ -75,3 +75,50 @@ def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
                 if m > 0:
                     F[l, B - 1 - m] += p * ws
     return F
+
+
+@numba.njit(cache=True)
+def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
+               binary: bool) -> None:
+    """Add each point's weight to ``grid`` (3D, zeroed by the caller) at the voxel
+    holding it, or shared among the 8 voxel centres about it when ``trilinear``; with
+    ``binary``, 1 in every voxel that receives weight (:func:`o3d_spectral.grid.splat`).
+
+    Parameters
+    ----------
+    grid : ndarray, shape (X, Y, Z)
+        Filled in place; points (corners) outside it are dropped.
+    u : ndarray, shape (N, 3)
+        Continuous voxel coordinates (voxel ``i`` spans ``[i, i + 1)``).
+    weights : ndarray, shape (N,)
+    trilinear, binary : bool
+    """
+    nx, ny, nz = grid.shape
+    for i in range(u.shape[0]):
+        if trilinear:
+            fx, fy, fz = u[i, 0] - 0.5, u[i, 1] - 0.5, u[i, 2] - 0.5
+        else:
+            fx, fy, fz = u[i, 0], u[i, 1], u[i, 2]
+        bx, by, bz = int(np.floor(fx)), int(np.floor(fy)), int(np.floor(fz))
+        corners = 2 if trilinear else 1
+        for cx in range(corners):
+            x = bx + cx
+            if x < 0 or x >= nx:
+                continue
+            wx = (fx - bx if cx else 1.0 - (fx - bx)) if trilinear else 1.0
+            for cy in range(corners):
+                y = by + cy
+                if y < 0 or y >= ny:
+                    continue
+                wy = (fy - by if cy else 1.0 - (fy - by)) if trilinear else 1.0
+                for cz in range(corners):
+                    z = bz + cz
+                    if z < 0 or z >= nz:
+                        continue
+                    wz = (fz - bz if cz else 1.0 - (fz - bz)) if trilinear else 1.0
+                    w = weights[i] * wx * wy * wz
+                    if binary:
+                        if w != 0.0:
+                            grid[x, y, z] = 1.0
+                    else:
+                        grid[x, y, z] += w

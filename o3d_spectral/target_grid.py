@@ -136,7 +136,7 @@ class TargetGrid:
         box = self.moving_box(radius, centre)
         fixed = self.search_box(radius, around)
         fft, spectrum = self._fft(fixed, box)
-        buffer = np.zeros(fft.shape, dtype=fft.dtype)
+        buffer = np.empty(fft.shape, dtype=fft.dtype)  # zeroed by splat
         splat(moved, box, mode=self.weighting, out=buffer)
         buffer /= np.linalg.norm(buffer)
         if fixed is self.box:  # every shift, read unambiguously
