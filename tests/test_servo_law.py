@@ -50,6 +50,26 @@ def test_step_increments_follow_the_gains():
     assert law.level == 0
 
 
+def test_later_law_cycles_search_the_shift_about_what_the_last_one_left():
+    """After a first cycle over the whole grid, each capture's shift is searched about the
+    translation the previous cycle left to do, and reads what the whole grid reads."""
+    reference = sample_model("cracker_box", 5000)
+    law = ServoLaw(reference, 0.008)
+    seen = []
+    evaluate = law.stepper.evaluate
+    law.stepper.evaluate = lambda *a, **k: seen.append(k.get("around")) or evaluate(*a, **k)
+    current = o3d.geometry.PointCloud(reference).translate([0.03, -0.02, 0.01])
+    first = law.step(current)
+    current.transform(first.transformation)
+    second = law.step(current)
+    assert seen[0] is None
+    left = first.evaluation.translation - first.delta_translation
+    moving = law.stepper.moving(current)
+    np.testing.assert_allclose(seen[1], moving.centroid + left)
+    whole = evaluate(moving, level=law.level)  # no prediction: the whole grid
+    np.testing.assert_allclose(second.evaluation.translation, whole.translation, atol=4e-4)
+
+
 def test_global_steps_head_for_a_far_rotation_then_hand_over_to_the_law():
     """From 120 degrees, beyond the law's reach, the global search's correction is the
     true one (to the grid's resolution), its increments follow the gains, and the law
