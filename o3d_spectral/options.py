@@ -208,7 +208,7 @@ class GlobalSearchOption:
         0 tries none.
     coarse_placements : int
         In a fixed cloud about the moving one's size (not a scene:
-        :meth:`o3d_spectral.SpectralStepper.is_scene`), the candidates are first placed
+        :func:`o3d_spectral.search.is_scene`), the candidates are first placed
         on grids of twice the voxel (an eighth of the FFT) and only this many, the
         highest, are placed at full resolution; 0 places every one at full resolution.
         Not in a scene, where clutter can outscore the object at the coarse voxel.

@@ -42,11 +42,6 @@ __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
 FOCUS_SHARE = 0.9
-#: :meth:`SpectralStepper.is_scene`: a fixed cloud whose radius exceeds the moving one's
-#: by this factor holds more than the moving cloud (a scene).
-SCENE_RATIO = 1.5
-#: Voxel of :attr:`SpectralStepper.coarse_grid`, in voxels (an eighth of the FFT).
-COARSE_FACTOR = 2.0
 #: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
 #: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
 MAX_HARMONICS_TABLE = 64 * 2**20
@@ -157,21 +152,6 @@ class SpectralStepper:
             camera_location=self.cloud.camera_location if camera is None else camera,
             origin=self.frame_origin, name=name,
         )
-
-    @cached_property
-    def coarse_grid(self) -> TargetGrid:
-        """The fixed cloud's grid at :data:`COARSE_FACTOR` voxels, built on first use:
-        ranking many placements at an eighth of the FFT (:meth:`locate`)."""
-        return TargetGrid(
-            self.target_points, COARSE_FACTOR * self.voxel_size,
-            weighting=self.option.voxel_weighting, peak_width=self.option.peak_width,
-            window=None, max_memory=self.option.max_grid_memory,
-        )
-
-    def is_scene(self, moving: MovingCloud) -> bool:
-        """Whether the fixed cloud holds more than the moving one: its radius over
-        :data:`SCENE_RATIO` times the moving cloud's."""
-        return extent(self.target_points)[1] > SCENE_RATIO * moving.radius
 
     @cached_property
     def _normals_tree(self) -> cKDTree:
@@ -302,10 +282,10 @@ class SpectralStepper:
     ) -> tuple[NDArray[np.float64], float, float]:
         """Where the moving cloud, turned by ``rotation`` (3, 3) about its centroid, best
         matches the fixed one (searched near ``around``, metres, when given; on
-        :attr:`coarse_grid` when ``coarse``): its centroid there (metres), the
-        phase-correlation peak height and ``J_t`` before the shift."""
+        :attr:`o3d_spectral.target_grid.TargetGrid.coarse` when ``coarse``): its centroid
+        there (metres), the phase-correlation peak height and ``J_t`` before the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
-        grid = self.coarse_grid if coarse else self.grid
+        grid = self.grid.coarse if coarse else self.grid
         placed = grid.correlate(moved, moving.radius, moving.centroid, around)
         return moving.centroid + placed.shift, placed.peak, placed.cost
 

@@ -296,7 +296,7 @@ def test_coarse_placement_keeps_the_candidate_the_full_placement_ranks_first():
     T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
     stepper = o3d_spectral.SpectralStepper(moved_copy(source, T), VOXEL)
     moving = stepper.moving(source)
-    assert not stepper.is_scene(moving)
+    assert not search.is_scene(stepper, moving)
     full = search.hypotheses(
         stepper, moving, o3d_spectral.GlobalSearchOption(coarse_placements=0)
     )
@@ -304,7 +304,7 @@ def test_coarse_placement_keeps_the_candidate_the_full_placement_ranks_first():
     assert len(full) > 12 and len(coarse) == 12  # peaks: up to 32 distinct
     np.testing.assert_array_equal(coarse[0].rotation, full[0].rotation)
     np.testing.assert_array_equal(coarse[0].centre, full[0].centre)
-    assert stepper.coarse_grid.voxel_size == 2 * stepper.voxel_size
+    assert stepper.grid.coarse.voxel_size == 2 * stepper.voxel_size
 
 
 def test_a_scene_is_placed_at_full_resolution():
@@ -316,7 +316,7 @@ def test_a_scene_is_placed_at_full_resolution():
     scene = np.vstack([np.asarray(drill.points), plane])
     stepper = o3d_spectral.SpectralStepper(scene, VOXEL)
     moving = stepper.moving(drill)
-    assert stepper.is_scene(moving)
+    assert search.is_scene(stepper, moving)
     found = search.hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(hypotheses=16))
     assert len(found) == 16
 
