@@ -81,7 +81,7 @@ def main() -> None:
 
     grid_box = stepper.grid.moving_box(moving.radius, moving.centroid)
     block = stepper.grid.search_box(moving.radius, around=moving.centroid)
-    shape = stepper.grid.fft_shape(block, grid_box)  # the windowed iterations' FFT grid
+    shape = stepper.grid.fft_shape(block, grid_box, moving.radius)  # the iterations' FFT grid
     plan = fft.fft_plan(shape, precision=PRECISION)  # the iterations' precision
     grid = np.random.default_rng(0).random(shape).astype(plan.dtype)
     spectrum = np.array(plan.forward(grid))

@@ -28,7 +28,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import so3
-from .cloud import extent
 from .law import Climb, climb
 from .options import GlobalSearchOption
 from .shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
@@ -37,14 +36,11 @@ from .stepper import MovingCloud, SpectralStepper
 
 __all__ = [
     "Hypothesis", "hypotheses", "shell_hypotheses", "places", "global_search", "confidence",
-    "is_scene", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SCENE_RATIO",
+    "DISTINCT_ANGLE", "FOCUS_MARGIN",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
-#: A fixed cloud whose radius exceeds the moving one's by this factor holds more than
-#: the moving cloud: a scene (:func:`is_scene`).
-SCENE_RATIO = 1.5
 #: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
 #: distance (voxels) from a hypothesis' points of the normals its climb matches.
 FOCUS_MARGIN = 2.0
@@ -113,11 +109,11 @@ def _placed(
     around: ArrayLike | None, coarse_placements: int = 0,
 ) -> list[Hypothesis]:
     """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
-    near ``around`` (anywhere when None), highest placed peak first. Placed anywhere in a
-    fixed cloud that is no scene (:func:`is_scene`), only the ``coarse_placements`` (when
-    over 0) that place best on the coarse grid (:meth:`o3d_spectral.SpectralStepper.locate`)
-    are kept."""
-    if around is None and 0 < coarse_placements < len(rotations) and not is_scene(stepper, moving):
+    near ``around`` (anywhere when None), highest placed peak first. Placed anywhere
+    between two views (:meth:`o3d_spectral.SpectralStepper.two_views`), only the
+    ``coarse_placements`` (when over 0) that place best on the coarse grid
+    (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
+    if around is None and 0 < coarse_placements < len(rotations) and stepper.two_views(moving):
         scores = [stepper.locate(moving, R, coarse=True)[1] for R, _ in rotations]
         best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
         rotations = [rotations[i] for i in np.sort(best)]
@@ -126,14 +122,6 @@ def _placed(
         centre, peak, cost = stepper.locate(moving, R, around=around)
         found.append(Hypothesis(R, centre, peak, cost))
     return _best_first(found)
-
-
-def is_scene(stepper: SpectralStepper, moving: MovingCloud) -> bool:
-    """Whether the fixed cloud holds more than the moving one: its radius over
-    :data:`SCENE_RATIO` times the moving cloud's. In a scene the coarse grid can rank
-    clutter above the object (cluttered suite, instance 5), so every candidate is placed
-    at full resolution."""
-    return extent(stepper.target_points)[1] > SCENE_RATIO * moving.radius
 
 
 def _best_first(found: list[Hypothesis]) -> list[Hypothesis]:

@@ -20,6 +20,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .cloud import extent
 from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .translation import cross_power_peak
@@ -28,6 +29,9 @@ __all__ = ["Placement", "TargetGrid"]
 
 #: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
 CACHED_SPECTRA = 8
+#: A fixed cloud whose radius exceeds a moving one's by this factor holds more than the
+#: moving cloud: a scene (:meth:`TargetGrid.holds_more`).
+SCENE_RATIO = 1.5
 #: Voxel of :attr:`TargetGrid.coarse`, in voxels (an eighth of the FFT).
 COARSE_FACTOR = 2.0
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
@@ -85,6 +89,7 @@ class TargetGrid:
         self.box = self.lattice.box_around(lower, upper, margin=2)
         check_memory(self.box.shape, max_memory, "target")
         self._points = points
+        self.radius = extent(points)[1]
         grid = splat(points, self.box, mode=weighting)
         self._grid = grid / np.linalg.norm(grid)
         self._spectra: dict[tuple, NDArray[np.complexfloating]] = {}
@@ -107,15 +112,28 @@ class TargetGrid:
         offset = np.floor((centre - half - self.lattice.origin) / self.voxel_size)
         return Box(self.lattice, offset.astype(np.int64), (side, side, side))
 
-    def fft_shape(self, fixed: Box, moving: Box) -> tuple[int, int, int]:
-        """The FFT grid on which ``moving`` is correlated with ``fixed``: their sizes
-        summed for the whole fixed grid (every shift read unambiguously), the block's own
-        size for a window about a prediction (only the shifts keeping the moving grid in
-        the block are read: :func:`o3d_spectral.translation.cross_power_peak`'s
-        ``searched``)."""
-        if fixed is not self.box:
+    def holds_more(self, radius: float) -> bool:
+        """Whether the fixed cloud holds more than a moving cloud of ``radius`` (metres):
+        its own radius over :data:`SCENE_RATIO` times that (a scene)."""
+        return self.radius > SCENE_RATIO * radius
+
+    def fft_shape(
+        self, fixed: Box, moving: Box, radius: float | None = None
+    ) -> tuple[int, int, int]:
+        """The FFT grid on which ``moving`` (the grid of a moving cloud of ``radius``,
+        metres) is correlated with ``fixed``: their sizes summed (every shift read
+        unambiguously), except for a window about a prediction in a fixed cloud that holds
+        no more than the moving one (:meth:`holds_more`): the block's own size (only the
+        shifts keeping the moving grid in the block are read:
+        :func:`o3d_spectral.translation.cross_power_peak`'s ``searched``). In a scene the
+        block's content would wrap around its edges and change the peak heights that rank
+        the climbs (cluttered suite: 136 successes of 240 against 145)."""
+        if self._unpadded(fixed, radius):
             return tuple(next_fast_len(a) for a in fixed.shape)
         return tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, moving.shape, strict=True))
+
+    def _unpadded(self, fixed: Box, radius: float | None) -> bool:
+        return fixed is not self.box and radius is not None and not self.holds_more(radius)
 
     def search_box(self, radius: float, around: ArrayLike | None = None) -> Box:
         """The block of the fixed grid a moving cloud of ``radius`` is correlated with.
@@ -130,14 +148,17 @@ class TargetGrid:
         if around is None or self.window is None:
             return self.box
         moving = self.moving_box(radius, np.zeros(3))
-        side = next_fast_len(moving.shape[0] + 2 * self.window)
+        side = moving.shape[0] + 2 * self.window
+        if not self.holds_more(radius):
+            side = next_fast_len(side)  # the block fills its own FFT
         snap = max(self.window // 2, 1)
         centre = (np.asarray(around, dtype=np.float64) - self.lattice.origin) / self.voxel_size
         offset = (np.round(centre / snap) * snap).astype(np.int64) - side // 2
         window = Box(self.lattice, offset, (side, side, side))
         whole = np.prod(self.fft_shape(self.box, moving), dtype=np.float64)
-        windowed = np.prod(self.fft_shape(window, moving), dtype=np.float64)
-        return window if windowed < whole else self.box
+        windowed = np.prod(self.fft_shape(window, moving, radius), dtype=np.float64)
+        share = 0.5 if self.holds_more(radius) else 1.0  # a scene's padded windows: if they halve
+        return window if windowed < share * whole else self.box
 
     def correlate(
         self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
@@ -148,14 +169,14 @@ class TargetGrid:
         grid, near ``around`` when given (eq. fourier_shift_solution)."""
         box = self.moving_box(radius, centre)
         fixed = self.search_box(radius, around)
-        fft, spectrum = self._fft(fixed, box)
+        fft, spectrum = self._fft(fixed, box, radius)
         buffer = np.empty(fft.shape, dtype=fft.dtype)  # zeroed by splat
         splat(moved, box, mode=self.weighting, out=buffer)
         buffer /= np.linalg.norm(buffer)
-        if fixed is self.box:  # every shift, read unambiguously
-            bounds = {"positive_below": fixed.shape}
-        else:  # the shifts keeping the moving grid inside the block
+        if self._unpadded(fixed, radius):  # the shifts keeping the moving grid in the block
             bounds = {"searched": tuple(np.subtract(fft.shape, box.shape) + 1)}
+        else:  # every shift, read unambiguously
+            bounds = {"positive_below": fixed.shape}
         peak = cross_power_peak(
             fft.forward(buffer), spectrum, fft, sigma=self.peak_width, **bounds
         )
@@ -190,10 +211,13 @@ class TargetGrid:
             ]
         return out
 
-    def _fft(self, fixed: Box, moving: Box) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
-        """The FFT plan for correlating ``moving`` with ``fixed``, and the fixed block's
-        spectrum (cached: a few blocks and shapes recur over a registration)."""
-        shape = self.fft_shape(fixed, moving)
+    def _fft(
+        self, fixed: Box, moving: Box, radius: float
+    ) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
+        """The FFT plan for correlating ``moving`` (of a cloud of ``radius``) with
+        ``fixed``, and the fixed block's spectrum (cached: a few blocks and shapes recur
+        over a registration)."""
+        shape = self.fft_shape(fixed, moving, radius)
         key = (tuple(fixed.offset), fixed.shape, shape)
         fft = fft_plan(shape, precision=PRECISION)  # this thread's plan
         with self._lock:

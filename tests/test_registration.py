@@ -288,15 +288,15 @@ def test_global_search_recovers_a_large_rotation():
     assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here
 
 
-def test_coarse_placement_keeps_the_candidate_the_full_placement_ranks_first():
-    """An object against a moved copy: the 16 candidates the coarse grid ranks best hold
-    the one the full grid places best, at the same place; the same registration results."""
-    source = sample_model("power_drill", 6000)
-    T = np.eye(4)
-    T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
-    stepper = o3d_spectral.SpectralStepper(moved_copy(source, T), VOXEL)
-    moving = stepper.moving(source)
-    assert not search.is_scene(stepper, moving)
+def test_coarse_placement_of_two_views_keeps_the_candidate_the_full_placement_ranks_first():
+    """Two dragon scans 24 degrees apart: the 16 candidates the coarse grid ranks best hold
+    the one the full grid places best, at the same place."""
+    from o3d_spectral.harness.real import load_cases
+
+    case = load_cases(["dragon_24"])[0]
+    stepper = o3d_spectral.SpectralStepper(case.target, 0.005)
+    moving = stepper.moving(case.source)
+    assert stepper.two_views(moving)
     full = search.hypotheses(
         stepper, moving, o3d_spectral.GlobalSearchOption(coarse_placements=0)
     )
@@ -307,18 +307,17 @@ def test_coarse_placement_keeps_the_candidate_the_full_placement_ranks_first():
     assert stepper.grid.coarse.voxel_size == 2 * stepper.voxel_size
 
 
-def test_a_scene_is_placed_at_full_resolution():
-    """A drill on a wide plane (a scene): every candidate is placed on the full grid."""
-    drill = sample_model("power_drill", 2000)
-    u = np.linspace(-0.6, 0.6, 61)
-    x, y = np.meshgrid(u, u)
-    plane = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -0.15)])
-    scene = np.vstack([np.asarray(drill.points), plane])
-    stepper = o3d_spectral.SpectralStepper(scene, VOXEL)
-    moving = stepper.moving(drill)
-    assert search.is_scene(stepper, moving)
-    found = search.hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(hypotheses=16))
-    assert len(found) == 16
+def test_a_model_is_placed_at_full_resolution():
+    """A model against a moved copy (no two views): every candidate is placed on the
+    full grid."""
+    source = sample_model("power_drill", 6000)
+    T = np.eye(4)
+    T[:3, :3] = so3.exp(np.deg2rad(150.0) * np.array([0.6, -0.48, 0.64]))
+    stepper = o3d_spectral.SpectralStepper(moved_copy(source, T), VOXEL)
+    moving = stepper.moving(source)
+    assert not stepper.two_views(moving)
+    found = search.hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(hypotheses=24))
+    assert len(found) > 16
 
 
 @pytest.mark.slow
