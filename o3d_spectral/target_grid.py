@@ -133,23 +133,26 @@ class TargetGrid:
         return tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, moving.shape, strict=True))
 
     def _unpadded(self, fixed: Box, radius: float | None) -> bool:
+        """Whether ``fixed`` is a window correlated on its own FFT size (:meth:`fft_shape`)."""
         return fixed is not self.box and radius is not None and not self.holds_more(radius)
 
     def search_box(self, radius: float, around: ArrayLike | None = None) -> Box:
         """The block of the fixed grid a moving cloud of ``radius`` is correlated with.
 
         The whole fixed grid when ``around`` or ``window`` is None (a global search).
-        Otherwise a cube of the moving grid's side plus at least ``window`` voxels on each
-        side (up to the next fast FFT length), centred near ``around`` (metres, where the
-        moving cloud's centroid is expected: snapped to a coarse step so that nearby
-        predictions share one block and its cached spectrum), when its FFT is smaller than
-        the whole grid's.
+        Otherwise a cube of the moving grid's side plus ``window`` voxels on each side,
+        centred near ``around`` (metres, where the moving cloud's centroid is expected:
+        snapped to a coarse step so that nearby predictions share one block and its cached
+        spectrum). Outside a scene (:meth:`holds_more`) the cube grows to the next fast FFT
+        length, which it fills, and is used when its FFT is smaller than the whole grid's;
+        in a scene, padded (:meth:`fft_shape`), when its FFT is under half the whole's.
         """
         if around is None or self.window is None:
             return self.box
         moving = self.moving_box(radius, np.zeros(3))
+        scene = self.holds_more(radius)
         side = moving.shape[0] + 2 * self.window
-        if not self.holds_more(radius):
+        if not scene:
             side = next_fast_len(side)  # the block fills its own FFT
         snap = max(self.window // 2, 1)
         centre = (np.asarray(around, dtype=np.float64) - self.lattice.origin) / self.voxel_size
@@ -157,8 +160,7 @@ class TargetGrid:
         window = Box(self.lattice, offset, (side, side, side))
         whole = np.prod(self.fft_shape(self.box, moving), dtype=np.float64)
         windowed = np.prod(self.fft_shape(window, moving, radius), dtype=np.float64)
-        share = 0.5 if self.holds_more(radius) else 1.0  # a scene's padded windows: if they halve
-        return window if windowed < share * whole else self.box
+        return window if windowed < (0.5 if scene else 1.0) * whole else self.box
 
     def correlate(
         self, moved: NDArray[np.float64], radius: float, centre: NDArray[np.float64],
