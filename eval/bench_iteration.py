@@ -89,7 +89,7 @@ def main() -> None:
                              args.runs * args.iterations)
 
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores "
-          f"(1 thread used), Python {platform.python_version()}, FFT backend {fft.backend()}")
+          f"(1 thread used), Python {platform.python_version()}, FFT backend {fft.backend(shape)}")
     print(f"object {args.object}, voxel {1000 * args.voxel_size:.0f} mm, B = {args.bandwidth}, "
           f"FFT grid {shape[0]}x{shape[1]}x{shape[2]}, {len(moving.points)} source voxels")
     print(f"{'':32s}{'ms':>9s}")

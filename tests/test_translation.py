@@ -90,3 +90,21 @@ def test_searched_peak_never_reads_a_wrapped_shift(rng):
 def test_mismatched_grids_rejected():
     with pytest.raises(ValueError, match="one shape"):
         phase_correlation(np.zeros((4, 4, 4)), np.zeros((4, 4, 5)))
+
+
+def test_fft_library_is_chosen_by_shape_and_both_transform_alike():
+    """FFTW for sides that are all powers of two (or measured plans), pocketfft
+    otherwise; either way the forward transform is numpy's and inverts exactly."""
+    from o3d_spectral import fft
+
+    if fft.pyfftw is not None:
+        assert fft.backend((32, 64, 16)) == "pyfftw"
+        assert fft.backend((30, 36, 36), planning="measure") == "pyfftw"
+    assert fft.backend((30, 36, 36)) == "scipy"
+    rng = np.random.default_rng(2)
+    for shape in ((32, 64, 16), (30, 36, 35)):
+        grid = rng.random(shape)
+        plan = RealFFT3(shape)
+        spectrum = np.array(plan.forward(grid))
+        np.testing.assert_allclose(spectrum, np.fft.rfftn(grid), atol=1e-9 * grid.size)
+        np.testing.assert_allclose(plan.inverse(spectrum), grid, atol=1e-12)
