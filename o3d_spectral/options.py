@@ -206,6 +206,11 @@ class GlobalSearchOption:
         For two single views (two scans): peaks of the correlation of the voxel grids'
         spectra on spherical shells (:mod:`o3d_spectral.shells`) tried besides the EGI's;
         0 tries none.
+    sweep_rotations : int
+        For two single views: rotations spread evenly over SO(3) (this many over the
+        whole of it; those that keep the two sensors within 110 degrees are tried) placed
+        by phase correlation on a coarse grid, the best 16 then as the other candidates
+        (:func:`o3d_spectral.search.sweep_hypotheses`); 0 tries none.
     coarse_placements : int
         For two single views (two scans: :meth:`o3d_spectral.SpectralStepper.two_views`),
         the candidates are first placed on grids of twice the voxel (an eighth of the
@@ -224,12 +229,14 @@ class GlobalSearchOption:
     search_visibility: bool = True
     search_samples: int | None = None
     shell_hypotheses: int = 32
+    sweep_rotations: int = 1000
     coarse_placements: int = 16
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
+        check_int("sweep_rotations", self.sweep_rotations, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places"):
             check_int(name, getattr(self, name), low=1)

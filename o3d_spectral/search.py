@@ -6,7 +6,8 @@ The paper's law is a local gradient ascent. From an unknown pose,
 1. **Candidates**: the highest peaks of the rotation correlation evaluated over the whole
    of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`);
    for two single views, also those of the correlation of their voxel grids' spectra on
-   spherical shells (:func:`shell_hypotheses`).
+   spherical shells (:func:`shell_hypotheses`) and a sweep of rotations spread evenly
+   over SO(3), ranked by a coarse phase correlation (:func:`sweep_hypotheses`).
 2. **Placement**: each candidate rotation is placed by one phase correlation and scored by
    that correlation's peak height (how well the turned grid matches under any shift):
    :func:`hypotheses`.
@@ -33,14 +34,26 @@ from .options import GlobalSearchOption
 from .shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
+from .target_grid import COARSE_FACTOR
 
 __all__ = [
-    "Hypothesis", "hypotheses", "shell_hypotheses", "places", "global_search", "confidence",
-    "DISTINCT_ANGLE", "FOCUS_MARGIN",
+    "Hypothesis", "hypotheses", "shell_hypotheses", "sweep_hypotheses", "places",
+    "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
+    "SWEEP_PLACEMENTS", "SWEEP_SENSOR_ANGLE",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
+#: Voxels of the grid the sweep's rotations are first placed on (:func:`sweep_hypotheses`:
+#: a 27th of the FFT; a true rotation 10-15 degrees off the nearest swept one still
+#: placed best or nearly on the dragon scans).
+SWEEP_FACTOR = 3.0
+#: The sweep's rotations placed at full resolution.
+SWEEP_PLACEMENTS = 16
+#: Largest angle (radians) between the two views' sensor directions the sweep tries
+#: (from the normals, :func:`o3d_spectral.normals.view_direction`: 62-86 degrees on
+#: dragon scans 48-72 degrees apart); scans from further apart share little surface.
+SWEEP_SENSOR_ANGLE = np.deg2rad(110.0)
 #: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
 #: distance (voxels) from a hypothesis' points of the normals its climb matches.
 FOCUS_MARGIN = 2.0
@@ -104,6 +117,29 @@ def shell_hypotheses(
     return _placed(stepper, moving, peaks(grid, count=count), None, coarse_placements)
 
 
+def sweep_hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, count: int
+) -> list[Hypothesis]:
+    """For two single views: rotations spread evenly over SO(3), placed by phase
+    correlation, the best first.
+
+    Of the ``count`` rotations of :func:`o3d_spectral.so3.uniform_rotations`, those that
+    turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
+    fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels, and the
+    :data:`SWEEP_PLACEMENTS` that place best are placed again at full resolution. Two
+    scans far enough apart share too little of their normals for the EGI's peaks to hold
+    their rotation (dragon scans 48-72 degrees apart: none of the 32 highest within
+    50 degrees of it); the peak of a phase correlation, which compares the shapes
+    themselves, is much higher there than anywhere else (coarse: 0.37 against 0.23).
+    """
+    rotations = so3.uniform_rotations(count)
+    toward = rotations @ moving.reading.view @ stepper.target_reading.view
+    rotations = rotations[toward >= np.cos(SWEEP_SENSOR_ANGLE)]
+    scores = np.array([stepper.locate(moving, R, factor=SWEEP_FACTOR)[1] for R in rotations])
+    best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
+    return _placed(stepper, moving, [(rotations[i], scores[i]) for i in best], None)
+
+
 def _placed(
     stepper: SpectralStepper, moving: MovingCloud, rotations: list[tuple[NDArray, float]],
     around: ArrayLike | None, coarse_placements: int = 0,
@@ -114,7 +150,7 @@ def _placed(
     ``coarse_placements`` (when over 0) that place best on the coarse grid
     (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
     if around is None and 0 < coarse_placements < len(rotations) and stepper.two_views(moving):
-        scores = [stepper.locate(moving, R, coarse=True)[1] for R, _ in rotations]
+        scores = [stepper.locate(moving, R, factor=COARSE_FACTOR)[1] for R, _ in rotations]
         best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
         rotations = [rotations[i] for i in np.sort(best)]
     found = []
@@ -181,11 +217,13 @@ def global_search(
     """
     ranked = hypotheses(stepper, moving, search)
     two_views = stepper.two_views(moving)
-    if search.shell_hypotheses and two_views:
-        shells = shell_hypotheses(
+    if two_views and search.shell_hypotheses:
+        ranked += shell_hypotheses(
             stepper, moving, search.shell_hypotheses, search.coarse_placements
         )
-        ranked = _best_first(ranked + shells)
+    if two_views and search.sweep_rotations:
+        ranked += sweep_hypotheses(stepper, moving, search.sweep_rotations)
+    ranked = _best_first(ranked)
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)

@@ -278,14 +278,15 @@ class SpectralStepper:
 
     def locate(
         self, moving: MovingCloud, rotation: ArrayLike, *, around: ArrayLike | None = None,
-        coarse: bool = False,
+        factor: float = 1.0,
     ) -> tuple[NDArray[np.float64], float, float]:
         """Where the moving cloud, turned by ``rotation`` (3, 3) about its centroid, best
-        matches the fixed one (searched near ``around``, metres, when given; on
-        :attr:`o3d_spectral.target_grid.TargetGrid.coarse` when ``coarse``): its centroid
-        there (metres), the phase-correlation peak height and ``J_t`` before the shift."""
+        matches the fixed one (searched near ``around``, metres, when given; on a grid of
+        ``factor`` voxels when over 1, :meth:`o3d_spectral.target_grid.TargetGrid.coarsened`):
+        its centroid there (metres), the phase-correlation peak height and ``J_t`` before
+        the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
-        grid = self.grid.coarse if coarse else self.grid
+        grid = self.grid if factor == 1.0 else self.grid.coarsened(factor)
         placed = grid.correlate(moved, moving.radius, moving.centroid, around)
         return moving.centroid + placed.shift, placed.peak, placed.cost
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,7 +31,8 @@ CACHED_SPECTRA = 8
 #: A fixed cloud whose radius exceeds a moving one's by this factor holds more than the
 #: moving cloud: a scene (:meth:`TargetGrid.holds_more`).
 SCENE_RATIO = 1.5
-#: Voxel of :attr:`TargetGrid.coarse`, in voxels (an eighth of the FFT).
+#: Voxel of the grid candidates are first placed on between two views, in voxels (an
+#: eighth of the FFT; :meth:`TargetGrid.coarsened`).
 COARSE_FACTOR = 2.0
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
 #: does not need more.
@@ -93,16 +93,20 @@ class TargetGrid:
         grid = splat(points, self.box, mode=weighting)
         self._grid = grid / np.linalg.norm(grid)
         self._spectra: dict[tuple, NDArray[np.complexfloating]] = {}
-        self._lock = threading.Lock()  # the cache is shared by the threads using this grid
+        self._coarsened: dict[float, TargetGrid] = {}
+        self._lock = threading.Lock()  # the caches are shared by the threads using this grid
 
-    @cached_property
-    def coarse(self) -> TargetGrid:
-        """The same fixed cloud on a grid of :data:`COARSE_FACTOR` voxels, no window,
-        built on first use: many placements ranked at an eighth of the FFT."""
-        return TargetGrid(
-            self._points, COARSE_FACTOR * self.voxel_size, weighting=self.weighting,
-            peak_width=self.peak_width, window=None, max_memory=self.max_memory,
-        )
+    def coarsened(self, factor: float) -> TargetGrid:
+        """The same fixed cloud on a grid of ``factor`` voxels, no window, built on first
+        use and kept: many placements ranked at ``1 / factor^3`` of the FFT (placement
+        ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search`)."""
+        with self._lock:
+            if factor not in self._coarsened:
+                self._coarsened[factor] = TargetGrid(
+                    self._points, factor * self.voxel_size, weighting=self.weighting,
+                    peak_width=self.peak_width, window=None, max_memory=self.max_memory,
+                )
+            return self._coarsened[factor]
 
     def moving_box(self, radius: float, centre: NDArray[np.float64]) -> Box:
         """The cube holding a moving cloud of ``radius`` (metres) centred at ``centre``

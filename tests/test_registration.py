@@ -304,7 +304,7 @@ def test_coarse_placement_of_two_views_keeps_the_candidate_the_full_placement_ra
     assert len(full) > 16 and len(coarse) == 16  # peaks: up to 32 distinct
     np.testing.assert_array_equal(coarse[0].rotation, full[0].rotation)
     np.testing.assert_array_equal(coarse[0].centre, full[0].centre)
-    assert stepper.grid.coarse.voxel_size == 2 * stepper.voxel_size
+    assert stepper.grid.coarsened(2.0).voxel_size == 2 * stepper.voxel_size
 
 
 def test_a_model_is_placed_at_full_resolution():

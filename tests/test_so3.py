@@ -78,3 +78,22 @@ def test_about_pivot_turns_about_the_pivot_then_shifts():
     x = rng.normal(size=3)
     np.testing.assert_allclose(M[:3, :3] @ x + M[:3, 3], R @ (x - pivot) + pivot + T, atol=1e-12)
     np.testing.assert_array_equal(M[3], [0.0, 0.0, 0.0, 1.0])
+
+
+def test_uniform_rotations_are_rotations_covering_so3_evenly():
+    """1000 rotations: each a rotation, the same on every call, and every one of 5000
+    random rotations within 23 degrees of one of them (the docstring's bound)."""
+    from scipy.spatial.transform import Rotation
+
+    swept = so3.uniform_rotations(1000)
+    assert swept.shape == (1000, 3, 3)
+    assert all(so3.is_rotation(R, atol=1e-12) for R in swept)
+    np.testing.assert_array_equal(swept, so3.uniform_rotations(1000))
+    probes = Rotation.random(5000, random_state=3).as_matrix()
+    traces = np.einsum("mij,nij->mn", probes, swept).max(axis=1)
+    nearest = np.rad2deg(np.arccos(np.clip((traces - 1.0) / 2.0, -1.0, 1.0)))
+    assert nearest.max() < 23.0 and np.median(nearest) < 13.0
+    # Even: no rotation of the set is another's near twin.
+    own = np.einsum("mij,nij->mn", swept, swept)
+    np.fill_diagonal(own, -1.0)
+    assert np.rad2deg(np.arccos(np.clip((own.max(axis=1) - 1.0) / 2.0, -1.0, 1.0))).min() > 3.0
