@@ -211,6 +211,10 @@ class GlobalSearchOption:
         whole of it; those that keep the two sensors within 110 degrees are tried) placed
         by phase correlation on a coarse grid, the best 16 then as the other candidates
         (:func:`o3d_spectral.search.sweep_hypotheses`); 0 tries none.
+    peak_ascent : bool
+        For two single views: turn the best pose to where the phase correlation's peak is
+        highest (:func:`o3d_spectral.ascent.peak_ascent`) before the polish; the law's
+        EGI term, which sees only what each sensor saw, leaves it 8-20 degrees off there.
     coarse_placements : int
         For two single views (two scans: :meth:`o3d_spectral.SpectralStepper.two_views`),
         the candidates are first placed on grids of twice the voxel (an eighth of the
@@ -230,6 +234,7 @@ class GlobalSearchOption:
     search_samples: int | None = None
     shell_hypotheses: int = 32
     sweep_rotations: int = 1000
+    peak_ascent: bool = True
     coarse_placements: int = 16
 
     def __post_init__(self) -> None:
@@ -240,7 +245,7 @@ class GlobalSearchOption:
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places"):
             check_int(name, getattr(self, name), low=1)
-        for name in ("egi_focus", "search_visibility"):
+        for name in ("egi_focus", "search_visibility", "peak_ascent"):
             check_bool(name, getattr(self, name))
         check_int("search_samples", self.search_samples, low=3, optional=True)
 

@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import centring
 from ._checks import check_instance, check_number, check_transformation
+from .ascent import peak_ascent
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
 from .law import Climb, climb
@@ -327,12 +328,15 @@ def registration_spectral_global(
     ranked = []
     for state in climbs:  # the best iterate of each climb
         score, pose, record = state.best_iterate()
-        ranked.append((score, pose @ run.init, record.translation_peak))
+        ranked.append((score, pose, record.translation_peak))
     ranked.sort(key=lambda item: -item[0])
     result = SpectralRegistrationResult()
-    result.hypotheses = [(M, score) for score, M, _ in ranked]
-    result.confidence = confidence([(score, M) for score, M, _ in ranked])
-    _, transformation, result.translation_peak = ranked[0]
+    result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked]
+    result.confidence = confidence([(score, M) for M, score in result.hypotheses])
+    _, pose, result.translation_peak = ranked[0]
+    if search.peak_ascent and run.stepper.two_views(run.moving):
+        pose, result.translation_peak = peak_ascent(run.stepper, run.moving, pose)
+    transformation = pose @ run.init
     return _finish(run, result, best, transformation, refinement, max_correspondence_distance)
 
 

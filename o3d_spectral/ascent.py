@@ -1,0 +1,67 @@
+"""The rotation that maximises the phase-correlation peak, by a compass search.
+
+Between two single views the law's rotation term correlates two EGIs that each hold only
+what their own sensor saw, and it turns the source towards where the two hemispheres of
+normals overlap most rather than to the truth: on dragon scans 24-72 degrees apart its
+poses ended 8-20 degrees off although the search had found the right neighbourhood.
+The peak of the translation's phase correlation compares the shapes themselves, and is
+highest at the truth (it ranks the candidates there). :func:`peak_ascent` climbs it over
+rotations without gradients: it tries turning the moving cloud by ``+-step`` about each
+axis, keeps any turn that raises the peak, and halves the step when none does (a compass
+search; Kolda, Lewis and Torczon, "Optimization by direct search", SIAM Review 2003).
+Each trial is one windowed phase correlation about the current place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import so3
+from .stepper import MovingCloud, SpectralStepper
+
+__all__ = ["ASCENT_STEPS", "peak_ascent"]
+
+#: The compass search's steps, radians, largest first (each tried until no turn by it
+#: raises the peak): from a pose 20 degrees off to within about 3 degrees, which the
+#: point-to-plane polish takes on (dragon pairs: 0.3 s, about 55 phase correlations).
+ASCENT_STEPS = tuple(np.deg2rad([8.0, 4.0, 2.0, 1.0]))
+
+
+def peak_ascent(
+    stepper: SpectralStepper, moving: MovingCloud, pose: NDArray[np.float64],
+    steps: tuple[float, ...] = ASCENT_STEPS,
+) -> tuple[NDArray[np.float64], float]:
+    """The pose near ``pose`` whose phase-correlation peak is highest, by compass search.
+
+    Parameters
+    ----------
+    stepper : SpectralStepper
+    moving : MovingCloud
+    pose : ndarray, shape (4, 4)
+        Start, mapping the moving cloud's points onto the fixed cloud.
+    steps : tuple of float
+        Turns tried about each axis, radians, largest first.
+
+    Returns
+    -------
+    pose : ndarray, shape (4, 4)
+        The rotation reached, about the moving cloud's centroid, and the translation its
+        phase correlation gives (rigid).
+    peak : float
+        Its peak height in [0, 1]; at least the start's.
+    """
+    c = moving.centroid
+    R = np.asarray(pose[:3, :3], dtype=np.float64)
+    centre = R @ c + pose[:3, 3]
+    for step in steps:
+        centre, best, _ = stepper.locate(moving, R, around=centre)
+        improved = True
+        while improved:
+            improved = False
+            for turn in np.concatenate([np.eye(3), -np.eye(3)]) * step:
+                turned = so3.exp(turn) @ R
+                place, peak, _ = stepper.locate(moving, turned, around=centre)
+                if peak > best:
+                    R, centre, best, improved = turned, place, peak, True
+    return so3.about_pivot(R, centre - c, c), best

@@ -1,0 +1,46 @@
+"""The compass search over rotations on the phase-correlation peak (o3d_spectral.ascent)."""
+
+import numpy as np
+import pytest
+
+import o3d_spectral
+from o3d_spectral import so3
+from o3d_spectral.ascent import peak_ascent
+from o3d_spectral.harness.real import load_cases
+
+
+@pytest.fixture(scope="module")
+def scans():
+    """Dragon scans at 0 and 24 degrees (two single views, 5 mm voxels) and the truth."""
+    case = load_cases(["dragon_24"])[0]
+    stepper = o3d_spectral.SpectralStepper(case.target, 0.005)
+    moving = stepper.moving(case.source)
+    assert stepper.two_views(moving)
+    return stepper, moving, case.T_gt
+
+
+@pytest.mark.parametrize("axis", [(1.0, 0.0, 0.0), (0.3, -0.8, 0.5)])
+def test_ascent_turns_a_pose_15_degrees_off_back_to_the_truth(scans, axis):
+    stepper, moving, truth = scans
+    turn = so3.exp(np.deg2rad(15.0) * np.asarray(axis) / np.linalg.norm(axis))
+    start = truth.copy()
+    start[:3, :3] = turn @ truth[:3, :3]  # turned about the frame's origin: off in place too
+    _, start_peak, _ = stepper.locate(moving, start[:3, :3])
+    pose, peak = peak_ascent(stepper, moving, start)
+    assert so3.is_rotation(pose[:3, :3], atol=1e-9) and np.array_equal(pose[3], [0, 0, 0, 1])
+    assert np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3])) < 3.0
+    centroid = moving.centroid
+    reached = pose[:3, :3] @ centroid + pose[:3, 3]
+    assert np.linalg.norm(reached - (truth[:3, :3] @ centroid + truth[:3, 3])) < 0.005
+    assert peak >= start_peak
+
+
+def test_ascent_from_the_truth_stays_there(scans):
+    stepper, moving, truth = scans
+    pose, _ = peak_ascent(stepper, moving, truth)
+    assert np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3])) < 2.0
+
+
+def test_peak_ascent_must_be_a_flag():
+    with pytest.raises(TypeError, match="peak_ascent"):
+        o3d_spectral.GlobalSearchOption(peak_ascent="yes")
