@@ -39,15 +39,24 @@ from .target_grid import COARSE_FACTOR
 __all__ = [
     "Hypothesis", "hypotheses", "shell_hypotheses", "sweep_hypotheses", "places",
     "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
-    "SWEEP_PLACEMENTS", "SWEEP_SENSOR_ANGLE",
+    "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "SWEEP_SENSOR_ANGLE",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
 #: Voxels of the grid the sweep's rotations are first placed on (:func:`sweep_hypotheses`:
 #: a 27th of the FFT; a true rotation 10-15 degrees off the nearest swept one still
-#: placed best or nearly on the dragon scans).
+#: placed best or nearly on the dragon scans, 44-54 voxels across) ...
 SWEEP_FACTOR = 3.0
+#: ... or more, so that the moving cloud spans at most this many of its cells: the cost
+#: of each placement bounded whatever the clouds' size (two 1.6 m RGB-D frames at 1 cm:
+#: 9 cm cells; at 3 cm, the sweep alone took 18 s).
+SWEEP_SPAN = 18.0
+#: Between two views, candidates are placed on a grid where the moving cloud spans at
+#: most this many cells: the voxel itself for the dragon scans (44-54 voxels across);
+#: two 1.6 m RGB-D frames at 1 cm placed each of their 48 candidates in 0.27 s at the
+#: voxel, and in a tenth of that on 2.5-voxel cells.
+PLACEMENT_SPAN = 64.0
 #: The sweep's rotations placed at full resolution.
 SWEEP_PLACEMENTS = 16
 #: Largest angle (radians) between the two views' sensor directions the sweep tries
@@ -125,7 +134,8 @@ def sweep_hypotheses(
 
     Of the ``count`` rotations of :func:`o3d_spectral.so3.uniform_rotations`, those that
     turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
-    fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels, and the
+    fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a
+    moving cloud over :data:`SWEEP_SPAN` of those across), and the
     :data:`SWEEP_PLACEMENTS` that place best are placed again at full resolution. Two
     scans far enough apart share too little of their normals for the EGI's peaks to hold
     their rotation (dragon scans 48-72 degrees apart: none of the 32 highest within
@@ -135,7 +145,8 @@ def sweep_hypotheses(
     rotations = so3.uniform_rotations(count)
     toward = rotations @ moving.reading.view @ stepper.target_reading.view
     rotations = rotations[toward >= np.cos(SWEEP_SENSOR_ANGLE)]
-    scores = np.array([stepper.locate(moving, R, factor=SWEEP_FACTOR)[1] for R in rotations])
+    factor = max(SWEEP_FACTOR, stepper.span_factor(moving, SWEEP_SPAN))
+    scores = np.array([stepper.locate(moving, R, factor=factor)[1] for R in rotations])
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
     return _placed(stepper, moving, [(rotations[i], scores[i]) for i in best], None)
 
@@ -146,16 +157,21 @@ def _placed(
 ) -> list[Hypothesis]:
     """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
     near ``around`` (anywhere when None), highest placed peak first. Placed anywhere
-    between two views (:meth:`o3d_spectral.SpectralStepper.two_views`), only the
-    ``coarse_placements`` (when over 0) that place best on the coarse grid
+    between two views (:meth:`o3d_spectral.SpectralStepper.two_views`): on a grid where
+    the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the
+    ``coarse_placements`` (when over 0) that place best on one twice as coarse
     (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
-    if around is None and 0 < coarse_placements < len(rotations) and stepper.two_views(moving):
-        scores = [stepper.locate(moving, R, factor=COARSE_FACTOR)[1] for R, _ in rotations]
-        best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
-        rotations = [rotations[i] for i in np.sort(best)]
+    factor = 1.0
+    if around is None and stepper.two_views(moving):
+        factor = stepper.span_factor(moving, PLACEMENT_SPAN)
+        if 0 < coarse_placements < len(rotations):
+            coarse = COARSE_FACTOR * factor
+            scores = [stepper.locate(moving, R, factor=coarse)[1] for R, _ in rotations]
+            best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
+            rotations = [rotations[i] for i in np.sort(best)]
     found = []
     for R, _ in rotations:
-        centre, peak, cost = stepper.locate(moving, R, around=around)
+        centre, peak, cost = stepper.locate(moving, R, around=around, factor=factor)
         found.append(Hypothesis(R, centre, peak, cost))
     return _best_first(found)
 

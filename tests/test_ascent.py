@@ -44,3 +44,12 @@ def test_ascent_from_the_truth_stays_there(scans):
 def test_peak_ascent_must_be_a_flag():
     with pytest.raises(TypeError, match="peak_ascent"):
         o3d_spectral.GlobalSearchOption(peak_ascent="yes")
+
+
+def test_span_factor_coarsens_only_clouds_spanning_more_cells(scans):
+    """The dragon scan (about 50 voxels across) keeps the voxel at 64 cells; asked for 10
+    cells, the grid is 2 r / 10 voxels."""
+    stepper, moving, _ = scans
+    assert stepper.span_factor(moving, 64.0) == 1.0
+    expected = 2.0 * moving.radius / (10.0 * stepper.voxel_size)
+    assert expected > 1.0 and stepper.span_factor(moving, 10.0) == pytest.approx(expected)
