@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import so3
+from .search import span_factor
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["ASCENT_SPAN", "ASCENT_STEPS", "peak_ascent"]
@@ -59,7 +60,7 @@ def peak_ascent(
     c = moving.centroid
     R = np.asarray(pose[:3, :3], dtype=np.float64)
     centre = R @ c + pose[:3, 3]
-    factor = stepper.span_factor(moving, ASCENT_SPAN)
+    factor = span_factor(stepper, moving, ASCENT_SPAN)
     near = {"factor": factor} if factor > 1.0 else {}  # a coarse grid has no window
 
     def locate(rotation: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:

@@ -39,7 +39,7 @@ from .target_grid import COARSE_FACTOR
 __all__ = [
     "Hypothesis", "hypotheses", "shell_hypotheses", "sweep_hypotheses", "places",
     "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
-    "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "SWEEP_SENSOR_ANGLE",
+    "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor", "SWEEP_SENSOR_ANGLE",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
@@ -126,6 +126,13 @@ def shell_hypotheses(
     return _placed(stepper, moving, peaks(grid, count=count), None, coarse_placements)
 
 
+def span_factor(stepper: SpectralStepper, moving: MovingCloud, span: float) -> float:
+    """The grid factor (voxels, at least 1) at which the moving cloud spans at most
+    ``span`` cells across (:meth:`o3d_spectral.SpectralStepper.locate`'s ``factor``):
+    searches that place many rotations keep their cost bounded whatever the clouds' size."""
+    return max(1.0, 2.0 * moving.radius / (span * stepper.voxel_size))
+
+
 def sweep_hypotheses(
     stepper: SpectralStepper, moving: MovingCloud, count: int
 ) -> list[Hypothesis]:
@@ -145,7 +152,7 @@ def sweep_hypotheses(
     rotations = so3.uniform_rotations(count)
     toward = rotations @ moving.reading.view @ stepper.target_reading.view
     rotations = rotations[toward >= np.cos(SWEEP_SENSOR_ANGLE)]
-    factor = max(SWEEP_FACTOR, stepper.span_factor(moving, SWEEP_SPAN))
+    factor = max(SWEEP_FACTOR, span_factor(stepper, moving, SWEEP_SPAN))
     scores = np.array([stepper.locate(moving, R, factor=factor)[1] for R in rotations])
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
     return _placed(stepper, moving, [(rotations[i], scores[i]) for i in best], None)
@@ -163,7 +170,7 @@ def _placed(
     (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
     factor = 1.0
     if around is None and stepper.two_views(moving):
-        factor = stepper.span_factor(moving, PLACEMENT_SPAN)
+        factor = span_factor(stepper, moving, PLACEMENT_SPAN)
         if 0 < coarse_placements < len(rotations):
             coarse = COARSE_FACTOR * factor
             scores = [stepper.locate(moving, R, factor=coarse)[1] for R, _ in rotations]

@@ -223,12 +223,6 @@ class SpectralStepper:
         (two views each miss what the other sees: neither is culled)."""
         return self._culls(moving.reading)
 
-    def span_factor(self, moving: MovingCloud, span: float) -> float:
-        """The grid factor (voxels, at least 1) at which the moving cloud spans at most
-        ``span`` cells across (:meth:`locate`'s ``factor``): searches that place many
-        rotations keep their cost bounded whatever the clouds' size."""
-        return max(1.0, 2.0 * moving.radius / (span * self.voxel_size))
-
     def two_views(self, moving: MovingCloud) -> bool:
         """Whether both clouds are single views (two scans, ``reading.view`` known on
         both): neither is culled, and the global search adds rotations from the voxel
