@@ -11,6 +11,10 @@ axis, keeps any turn that raises the peak, and halves the step when none does (a
 search; Kolda, Lewis and Torczon, "Optimization by direct search", SIAM Review 2003).
 Each trial is one windowed phase correlation about the current place, on a grid coarse
 enough that the moving cloud spans at most :data:`ASCENT_SPAN` cells.
+
+:func:`o3d_spectral.registration_spectral_global` runs it on its best pose whatever the
+clouds: elsewhere too the law can stop a few degrees short of where the shapes agree best
+(a mug 8.6 degrees off about its axis, its handle left beside the model's).
 """
 
 from __future__ import annotations

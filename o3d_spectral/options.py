@@ -212,9 +212,11 @@ class GlobalSearchOption:
         by phase correlation on a coarse grid, the best 16 then as the other candidates
         (:func:`o3d_spectral.search.sweep_hypotheses`); 0 tries none.
     peak_ascent : bool
-        For two single views: turn the best pose to where the phase correlation's peak is
-        highest (:func:`o3d_spectral.ascent.peak_ascent`) before the polish; the law's
-        EGI term, which sees only what each sensor saw, leaves it 8-20 degrees off there.
+        Turn the best pose to where the phase correlation's peak is highest
+        (:func:`o3d_spectral.ascent.peak_ascent`) before the polish. Between two single
+        views the law's EGI term, which sees only what each sensor saw, leaves it 8-20
+        degrees off; on the suites' 960 instances it turned 6 failures into successes and
+        3 successes (occluded views) into failures.
     coarse_placements : int
         For two single views (two scans: :meth:`o3d_spectral.SpectralStepper.two_views`),
         the candidates are first placed on grids of twice the voxel (an eighth of the

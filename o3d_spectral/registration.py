@@ -275,8 +275,9 @@ def registration_spectral_global(
     of SO(3) at once by SO(3) Fourier transforms; its highest peaks are placed by 3D
     phase correlation and scored by that correlation's peak height; the best few are
     climbed by the paper's control law and ranked again; the best is climbed on to
-    convergence, and the best-scoring iterate of all the climbs is polished and returned
-    (:mod:`o3d_spectral.search`). Against a single view the search correlates the view
+    convergence, and the best-scoring iterate of all the climbs is turned to where the
+    phase correlation's peak is highest (:mod:`o3d_spectral.ascent`), polished and
+    returned (:mod:`o3d_spectral.search`). Against a single view the search correlates the view
     with the model as the sensor would see it; against a whole scene it focuses on the
     scene's normals where the object was located.
 
@@ -334,7 +335,7 @@ def registration_spectral_global(
     result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked]
     result.confidence = confidence([(score, M) for M, score in result.hypotheses])
     _, pose, result.translation_peak = ranked[0]
-    if search.peak_ascent and run.stepper.two_views(run.moving):
+    if search.peak_ascent:
         pose, result.translation_peak = peak_ascent(run.stepper, run.moving, pose)
     transformation = pose @ run.init
     return _finish(run, result, best, transformation, refinement, max_correspondence_distance)
