@@ -50,14 +50,14 @@ DISTINCT_ANGLE = np.deg2rad(10.0)
 SWEEP_FACTOR = 3.0
 #: ... or more, so that the moving cloud spans at most this many of its cells: the cost
 #: of each placement bounded whatever the clouds' size (two 1.6 m RGB-D frames at 1 cm:
-#: 9 cm cells; at 3 cm, the sweep alone took 18 s).
+#: 9 cm cells; before this bound, the sweep and its placements added 18 s there).
 SWEEP_SPAN = 18.0
 #: Between two views, candidates are placed on a grid where the moving cloud spans at
-#: most this many cells: the voxel itself for the dragon scans (44-54 voxels across);
-#: two 1.6 m RGB-D frames at 1 cm placed each of their 48 candidates in 0.27 s at the
-#: voxel, and in a tenth of that on 2.5-voxel cells.
-PLACEMENT_SPAN = 64.0
-#: The sweep's rotations placed at full resolution.
+#: most this many cells: the voxel itself for the dragon scans (44-54 voxels across) and
+#: the servo's tabletop captures (74-80); two 1.6 m RGB-D frames at 1 cm placed each of
+#: their 48 candidates in 0.27 s at the voxel, in a tenth of that on 2.5-voxel cells.
+PLACEMENT_SPAN = 96.0
+#: The sweep's rotations placed again as the other candidates (:data:`PLACEMENT_SPAN`).
 SWEEP_PLACEMENTS = 16
 #: Largest angle (radians) between the two views' sensor directions the sweep tries
 #: (from the normals, :func:`o3d_spectral.normals.view_direction`: 62-86 degrees on
@@ -127,10 +127,11 @@ def shell_hypotheses(
 
 
 def span_factor(stepper: SpectralStepper, moving: MovingCloud, span: float) -> float:
-    """The grid factor (voxels, at least 1) at which the moving cloud spans at most
+    """The grid factor (voxels, at least 1, in steps of half a voxel so that clouds of
+    about one size share their coarse grids) at which the moving cloud spans at most
     ``span`` cells across (:meth:`o3d_spectral.SpectralStepper.locate`'s ``factor``):
     searches that place many rotations keep their cost bounded whatever the clouds' size."""
-    return max(1.0, 2.0 * moving.radius / (span * stepper.voxel_size))
+    return max(1.0, np.ceil(4.0 * moving.radius / (span * stepper.voxel_size)) / 2.0)
 
 
 def sweep_hypotheses(
@@ -143,11 +144,12 @@ def sweep_hypotheses(
     turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
     fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a
     moving cloud over :data:`SWEEP_SPAN` of those across), and the
-    :data:`SWEEP_PLACEMENTS` that place best are placed again at full resolution. Two
-    scans far enough apart share too little of their normals for the EGI's peaks to hold
-    their rotation (dragon scans 48-72 degrees apart: none of the 32 highest within
-    50 degrees of it); the peak of a phase correlation, which compares the shapes
-    themselves, is much higher there than anywhere else (coarse: 0.37 against 0.23).
+    :data:`SWEEP_PLACEMENTS` that place best are placed again as the other candidates
+    (:data:`PLACEMENT_SPAN`). Two scans far enough apart share too little of their
+    normals for the EGI's peaks to hold their rotation (dragon scans 48 and 96 degrees:
+    none of the 200 highest within 100 degrees of it, none of the shells' within 50);
+    the peak of a phase correlation, which compares the shapes themselves, is highest
+    there (0.37 on a grid of 2 voxels, against at most 0.23 for the EGI's candidates).
     """
     rotations = so3.uniform_rotations(count)
     toward = rotations @ moving.reading.view @ stepper.target_reading.view

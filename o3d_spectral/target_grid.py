@@ -28,6 +28,9 @@ __all__ = ["Placement", "TargetGrid"]
 
 #: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
 CACHED_SPECTRA = 8
+#: Coarser grids kept at most (:meth:`TargetGrid.coarsened`; a servo run meets many
+#: captures: keep the last few).
+CACHED_COARSE_GRIDS = 4
 #: A fixed cloud whose radius exceeds a moving one's by this factor holds more than the
 #: moving cloud: a scene (:meth:`TargetGrid.holds_more`).
 SCENE_RATIO = 1.5
@@ -101,12 +104,14 @@ class TargetGrid:
         use and kept: many placements ranked at ``1 / factor^3`` of the FFT (placement
         ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search`)."""
         with self._lock:
-            if factor not in self._coarsened:
-                self._coarsened[factor] = TargetGrid(
-                    self._points, factor * self.voxel_size, weighting=self.weighting,
-                    peak_width=self.peak_width, window=None, max_memory=self.max_memory,
-                )
-            return self._coarsened[factor]
+            grid = self._coarsened.pop(factor, None) or TargetGrid(
+                self._points, factor * self.voxel_size, weighting=self.weighting,
+                peak_width=self.peak_width, window=None, max_memory=self.max_memory,
+            )
+            self._coarsened[factor] = grid  # the most recent last
+            if len(self._coarsened) > CACHED_COARSE_GRIDS:
+                del self._coarsened[next(iter(self._coarsened))]
+            return grid
 
     def moving_box(self, radius: float, centre: NDArray[np.float64]) -> Box:
         """The cube holding a moving cloud of ``radius`` (metres) centred at ``centre``

@@ -49,11 +49,23 @@ def test_peak_ascent_must_be_a_flag():
 
 def test_span_factor_coarsens_only_clouds_spanning_more_cells(scans):
     """The dragon scan (about 50 voxels across) keeps the voxel at 64 cells; asked for 10
-    cells, the grid is 2 r / 10 voxels."""
+    cells, the grid is 2 r / 10 voxels rounded up to half a voxel."""
     stepper, moving, _ = scans
     assert span_factor(stepper, moving, 64.0) == 1.0
-    expected = 2.0 * moving.radius / (10.0 * stepper.voxel_size)
-    assert expected > 1.0 and span_factor(stepper, moving, 10.0) == pytest.approx(expected)
+    across = 2.0 * moving.radius / stepper.voxel_size
+    factor = span_factor(stepper, moving, 10.0)
+    assert factor % 0.5 == 0.0 and across / 10.0 <= factor < across / 10.0 + 0.5
+
+
+def test_coarsened_grids_are_shared_and_only_the_last_few_kept(scans):
+    stepper, _, _ = scans
+    grid = stepper.grid
+    first = grid.coarsened(2.0)
+    assert grid.coarsened(2.0) is first and first.voxel_size == 2.0 * grid.voxel_size
+    for factor in (2.5, 3.0, 3.5, 4.0):  # one more than are kept
+        grid.coarsened(factor)
+    assert grid.coarsened(2.0) is not first  # dropped, built again
+
 
 
 def test_ascent_brings_a_mug_the_law_leaves_16_degrees_off_about_its_axis():
