@@ -64,24 +64,17 @@ def peak_ascent(
     c = moving.centroid
     R = np.asarray(pose[:3, :3], dtype=np.float64)
     centre = R @ c + pose[:3, 3]
-    factor = span_factor(stepper, moving, ASCENT_SPAN)
-    near = {"factor": factor} if factor > 1.0 else {}  # a coarse grid has no window
-
-    def locate(rotation: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-        where = {} if near else {"around": centre}
-        place, peak, _ = stepper.locate(moving, rotation, **where, **near)
-        return place, peak
-
+    factor = span_factor(stepper, moving, ASCENT_SPAN)  # a coarse grid has no window
     for step in steps:
-        centre, best = locate(R)
+        centre, best, _ = stepper.locate(moving, R, around=centre, factor=factor)
         improved = True
         while improved:
             improved = False
             for turn in np.concatenate([np.eye(3), -np.eye(3)]) * step:
                 turned = so3.exp(turn) @ R
-                place, peak = locate(turned)
+                place, peak, _ = stepper.locate(moving, turned, around=centre, factor=factor)
                 if peak > best:
                     R, centre, best, improved = turned, place, peak, True
-    if near:  # the translation at full resolution, about the coarse grid's
+    if factor > 1.0:  # the translation at full resolution, about the coarse grid's
         centre, best, _ = stepper.locate(moving, R, around=centre)
     return so3.about_pivot(R, centre - c, c), best

@@ -28,7 +28,7 @@ except ImportError:  # pragma: no cover
 __all__ = ["RealFFT3", "fft_plan", "next_fast_len", "backend"]
 
 
-def backend(shape: tuple[int, ...] = (64, 64, 64), planning: str = "estimate") -> str:
+def backend(shape: tuple[int, ...], planning: str = "estimate") -> str:
     """Library transforming ``shape`` with ``planning``: ``"pyfftw"`` (installed, and a
     measured plan or every side a power of two) or ``"scipy"``."""
     powers_of_two = all(n > 0 and n & (n - 1) == 0 for n in shape)
