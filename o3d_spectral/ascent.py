@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import so3
-from .search import span_factor
+from .search import Hypothesis, span_factor
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["ASCENT_SPAN", "ASCENT_STEPS", "peak_ascent"]
@@ -41,7 +41,7 @@ ASCENT_SPAN = 64.0
 def peak_ascent(
     stepper: SpectralStepper, moving: MovingCloud, pose: NDArray[np.float64],
     steps: tuple[float, ...] = ASCENT_STEPS,
-) -> tuple[NDArray[np.float64], float]:
+) -> Hypothesis:
     """The pose near ``pose`` whose phase-correlation peak is highest, by compass search.
 
     Parameters
@@ -55,26 +55,26 @@ def peak_ascent(
 
     Returns
     -------
-    pose : ndarray, shape (4, 4)
-        The rotation reached, about the moving cloud's centroid, and the translation its
-        phase correlation gives (rigid).
-    peak : float
-        Its peak height in [0, 1]; at least the start's on the same grid.
+    Hypothesis
+        The rotation reached (about the moving cloud's centroid), where its phase
+        correlation puts the turned cloud, that peak's height (at least the start's on the
+        same grid) and ``J_t`` before the shift; :meth:`Hypothesis.transformation` gives
+        the pose.
     """
     c = moving.centroid
     R = np.asarray(pose[:3, :3], dtype=np.float64)
     centre = R @ c + pose[:3, 3]
     factor = span_factor(stepper, moving, ASCENT_SPAN)  # a coarse grid has no window
     for step in steps:
-        centre, best, _ = stepper.locate(moving, R, around=centre, factor=factor)
+        centre, best, cost = stepper.locate(moving, R, around=centre, factor=factor)
         improved = True
         while improved:
             improved = False
             for turn in np.concatenate([np.eye(3), -np.eye(3)]) * step:
                 turned = so3.exp(turn) @ R
-                place, peak, _ = stepper.locate(moving, turned, around=centre, factor=factor)
+                place, peak, J_t = stepper.locate(moving, turned, around=centre, factor=factor)
                 if peak > best:
-                    R, centre, best, improved = turned, place, peak, True
+                    R, centre, best, cost, improved = turned, place, peak, J_t, True
     if factor > 1.0:  # the translation at full resolution, about the coarse grid's
-        centre, best, _ = stepper.locate(moving, R, around=centre)
-    return so3.about_pivot(R, centre - c, c), best
+        centre, best, cost = stepper.locate(moving, R, around=centre)
+    return Hypothesis(R, centre, best, cost)

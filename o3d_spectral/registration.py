@@ -336,7 +336,9 @@ def registration_spectral_global(
     result.confidence = confidence([(score, M) for M, score in result.hypotheses])
     _, pose, result.translation_peak = ranked[0]
     if search.peak_ascent:
-        pose, result.translation_peak = peak_ascent(run.stepper, run.moving, pose)
+        ascended = peak_ascent(run.stepper, run.moving, pose)
+        pose = ascended.transformation(run.moving.centroid)
+        result.translation_peak = ascended.translation_peak
     transformation = pose @ run.init
     return _finish(run, result, best, transformation, refinement, max_correspondence_distance)
 

@@ -97,6 +97,11 @@ class Hypothesis:
         return Climb(moving.centroid, self.rotation, self.centre - moving.centroid,
                      predicted=self.centre, egi_scored=egi_scored)
 
+    def transformation(self, centroid: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The hypothesis as a 4x4 rigid transform of a moving cloud whose centroid is
+        ``centroid`` (3,), metres."""
+        return so3.about_pivot(self.rotation, self.centre - centroid, centroid)
+
 
 def hypotheses(
     stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,

@@ -27,7 +27,8 @@ def test_ascent_turns_a_pose_15_degrees_off_back_to_the_truth(scans, axis):
     start = truth.copy()
     start[:3, :3] = turn @ truth[:3, :3]  # turned about the frame's origin: off in place too
     _, start_peak, _ = stepper.locate(moving, start[:3, :3])
-    pose, peak = peak_ascent(stepper, moving, start)
+    ascended = peak_ascent(stepper, moving, start)
+    pose, peak = ascended.transformation(moving.centroid), ascended.translation_peak
     assert so3.is_rotation(pose[:3, :3], atol=1e-9) and np.array_equal(pose[3], [0, 0, 0, 1])
     assert np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3])) < 3.0
     centroid = moving.centroid
@@ -38,7 +39,7 @@ def test_ascent_turns_a_pose_15_degrees_off_back_to_the_truth(scans, axis):
 
 def test_ascent_from_the_truth_stays_there(scans):
     stepper, moving, truth = scans
-    pose, _ = peak_ascent(stepper, moving, truth)
+    pose = peak_ascent(stepper, moving, truth).transformation(moving.centroid)
     assert np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3])) < 2.0
 
 
