@@ -25,7 +25,7 @@ try:  # pragma: no cover - exercised by whichever backend is installed
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["RealFFT3", "fft_plan", "next_fast_len", "backend"]
+__all__ = ["RealFFT3", "fft_plan", "next_fast_len", "backend", "batch_forward", "batch_inverse"]
 
 
 def backend(shape: tuple[int, ...], planning: str = "estimate") -> str:
@@ -100,6 +100,21 @@ class RealFFT3:
         if not self._fftw:
             return scipy.fft.irfftn(spectrum, s=self.shape, workers=self.threads)
         return self._inverse(spectrum)
+
+
+def batch_forward(grids: NDArray[np.floating]) -> NDArray[np.complexfloating]:
+    """Half spectra of a stack of real grids (B, nx, ny, nz), in one call of pocketfft
+    (``scipy.fft``) over the last three axes: many small grids transformed without a
+    Python call each (:meth:`o3d_spectral.target_grid.TargetGrid.peaks`)."""
+    return scipy.fft.rfftn(grids, axes=(-3, -2, -1))
+
+
+def batch_inverse(
+    spectra: NDArray[np.complexfloating], shape: tuple[int, int, int]
+) -> NDArray[np.floating]:
+    """Real grids of ``shape`` from a stack of half spectra (B, nx, ny, nz // 2 + 1), the
+    inverse of :func:`batch_forward`."""
+    return scipy.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1))
 
 
 #: Plans kept per thread (the least recently used beyond this are dropped).

@@ -23,6 +23,7 @@ iterate of all the climbs, with :func:`confidence`.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,7 @@ __all__ = [
     "Hypothesis", "hypotheses", "shell_hypotheses", "sweep_hypotheses", "places",
     "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
     "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor", "SWEEP_SENSOR_ANGLE",
+    "placed_peaks",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
@@ -160,9 +162,21 @@ def sweep_hypotheses(
     toward = rotations @ moving.reading.view @ stepper.target_reading.view
     rotations = rotations[toward >= np.cos(SWEEP_SENSOR_ANGLE)]
     factor = max(SWEEP_FACTOR, span_factor(stepper, moving, SWEEP_SPAN))
-    scores = np.array([stepper.locate(moving, R, factor=factor)[1] for R in rotations])
+    scores = placed_peaks(stepper, moving, rotations, factor)
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
     return _placed(stepper, moving, [(rotations[i], scores[i]) for i in best], None)
+
+
+def placed_peaks(
+    stepper: SpectralStepper, moving: MovingCloud, rotations: Iterable[NDArray[np.float64]],
+    factor: float = 1.0,
+) -> NDArray[np.float64]:
+    """The phase-correlation peak heights of the moving cloud turned by each rotation
+    (3, 3) about its centroid and placed anywhere on a grid of ``factor`` voxels:
+    :meth:`o3d_spectral.SpectralStepper.locate`'s for each, batched
+    (:meth:`o3d_spectral.target_grid.TargetGrid.peaks`)."""
+    moved = (stepper.visible(moving, R, np.zeros(3))[0] for R in rotations)
+    return stepper.grid.coarsened(factor).peaks(moved, moving.radius, moving.centroid)
 
 
 def _placed(
@@ -180,8 +194,8 @@ def _placed(
         factor = span_factor(stepper, moving, PLACEMENT_SPAN)
         if 0 < coarse_placements < len(rotations):
             coarse = COARSE_FACTOR * factor
-            scores = [stepper.locate(moving, R, factor=coarse)[1] for R, _ in rotations]
-            best = np.argsort(-np.asarray(scores), kind="stable")[:coarse_placements]
+            scores = placed_peaks(stepper, moving, [R for R, _ in rotations], coarse)
+            best = np.argsort(-scores, kind="stable")[:coarse_placements]
             rotations = [rotations[i] for i in np.sort(best)]
     found = []
     for R, _ in rotations:

@@ -286,7 +286,7 @@ class SpectralStepper:
         its centroid there (metres), the phase-correlation peak height and ``J_t`` before
         the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
-        grid = self.grid if factor == 1.0 else self.grid.coarsened(factor)
+        grid = self.grid.coarsened(factor)
         placed = grid.correlate(moved, moving.radius, moving.centroid, around)
         return moving.centroid + placed.shift, placed.peak, placed.cost
 

@@ -14,15 +14,17 @@ and only the shifts that keep the moving grid inside the block are read.
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import islice
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .cloud import extent
-from .fft import RealFFT3, fft_plan, next_fast_len
+from .fft import RealFFT3, batch_forward, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
-from .translation import cross_power_peak
+from .translation import cross_power_peak, peak_heights
 
 __all__ = ["Placement", "TargetGrid"]
 
@@ -37,6 +39,9 @@ SCENE_RATIO = 1.5
 #: Voxel of the grid candidates are first placed on between two views, in voxels (an
 #: eighth of the FFT; :meth:`TargetGrid.coarsened`).
 COARSE_FACTOR = 2.0
+#: Bytes of moving grids transformed together by :meth:`TargetGrid.peaks` (their spectra
+#: and correlations take about as much again each).
+BATCH_BYTES = 2**20
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
 #: does not need more.
 PRECISION = "single"
@@ -102,7 +107,10 @@ class TargetGrid:
     def coarsened(self, factor: float) -> TargetGrid:
         """The same fixed cloud on a grid of ``factor`` voxels, no window, built on first
         use and kept: many placements ranked at ``1 / factor^3`` of the FFT (placement
-        ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search`)."""
+        ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search`).
+        ``self`` for a factor of 1."""
+        if factor == 1.0:
+            return self
         with self._lock:
             grid = self._coarsened.pop(factor, None) or TargetGrid(
                 self._points, factor * self.voxel_size, weighting=self.weighting,
@@ -193,6 +201,34 @@ class TargetGrid:
         )
         shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
         return Placement(shift, peak.peak, self._cost(buffer, box))
+
+    def peaks(
+        self, moved: Iterable[NDArray[np.float64]], radius: float, centre: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """Phase-correlation peak heights of many point sets of one moving cloud (its
+        points turned about its centroid ``centre``, radius ``radius``, metres) against
+        the whole fixed grid: :meth:`correlate`'s ``peak`` for each (to rounding), with
+        the grids transformed in batches of :data:`BATCH_BYTES`. For ranking many
+        rotations (:func:`o3d_spectral.search.sweep_hypotheses`), where one correlation
+        each would spend more time in Python than in its small FFTs.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+        """
+        box = self.moving_box(radius, centre)
+        fft, spectrum = self._fft(self.box, box, radius)
+        batch = max(1, BATCH_BYTES // (fft.dtype.itemsize * int(np.prod(fft.shape))))
+        sets, heights = iter(moved), []
+        while chunk := list(islice(sets, batch)):
+            grids = np.empty((len(chunk), *fft.shape), dtype=fft.dtype)
+            for grid, points in zip(grids, chunk, strict=True):
+                splat(points, box, mode=self.weighting, out=grid)
+                grid /= np.linalg.norm(grid)
+            heights.append(
+                peak_heights(batch_forward(grids), spectrum, fft.shape, sigma=self.peak_width)
+            )
+        return np.concatenate(heights) if heights else np.zeros(0)
 
     def _cost(self, grid: NDArray[np.floating], box: Box) -> float:
         """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice; ``grid`` is

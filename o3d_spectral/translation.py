@@ -20,9 +20,11 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .fft import RealFFT3
+from .fft import RealFFT3, batch_inverse
 
-__all__ = ["PeakEstimate", "gaussian_window", "phase_correlation", "cross_power_peak"]
+__all__ = [
+    "PeakEstimate", "gaussian_window", "phase_correlation", "cross_power_peak", "peak_heights",
+]
 
 
 @dataclass(frozen=True)
@@ -148,14 +150,7 @@ def cross_power_peak(
     PeakEstimate
         The shift of ``g`` relative to ``f``, voxels.
     """
-    cross = np.conjugate(F)
-    cross *= G
-    magnitude = np.abs(cross)
-    np.maximum(magnitude, eps * float(magnitude.max()) + 1e-300, out=magnitude)
-    dtype = magnitude.dtype.type
-    # Whitened and windowed in one pass: cross * (window / |cross|).
-    cross *= np.divide(gaussian_window(fft.shape, sigma, dtype), magnitude, out=magnitude)
-    delta = fft.inverse(cross)
+    delta = fft.inverse(_whitened(F, G, fft.shape, sigma, eps))
     shape = np.asarray(delta.shape)
     if searched is not None:
         bounds = np.minimum(searched, shape)
@@ -167,9 +162,61 @@ def cross_power_peak(
         index = np.unravel_index(int(np.argmax(delta)), delta.shape)
         limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
         integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
-    # Height of a perfect match: the window's sum over the full spectrum over the grid size.
-    peak = float(delta[index] * np.prod(shape) / _full_window_sum(fft.shape, sigma, dtype))
+    peak = float(_peak_height(delta[index], fft.shape, sigma))
     return PeakEstimate(integer + _subvoxel(delta, index, bounds), peak)
+
+
+def peak_heights(
+    F: NDArray[np.complexfloating], G: NDArray[np.complexfloating],
+    shape: tuple[int, int, int], *, sigma: float = 1.0, eps: float = 1e-6,
+) -> NDArray[np.float64]:
+    """Heights of the phase-correlation peaks of a stack of moving grids' spectra against
+    one fixed spectrum: :func:`cross_power_peak`'s ``peak`` for each, read over the
+    whole grid, without the shift (ranking many rotations needs the heights only).
+
+    Parameters
+    ----------
+    F : ndarray, shape (B, nx, ny, nz // 2 + 1)
+        Half spectra of the moving grids.
+    G : ndarray, shape (nx, ny, nz // 2 + 1)
+        Half spectrum of the fixed grid.
+    shape : tuple of 3 int
+        Real-space grid shape ``(nx, ny, nz)``.
+    sigma, eps : float
+        As for :func:`cross_power_peak`.
+
+    Returns
+    -------
+    ndarray, shape (B,)
+    """
+    delta = batch_inverse(_whitened(F, G, shape, sigma, eps), shape)
+    return _peak_height(delta.reshape(len(delta), -1).max(axis=1), shape, sigma)
+
+
+def _whitened(
+    F: NDArray[np.complexfloating], G: NDArray[np.complexfloating],
+    shape: tuple[int, int, int], sigma: float, eps: float,
+) -> NDArray[np.complexfloating]:
+    """The windowed, normalised cross-power spectrum ``window G conj(F) / |G conj(F)|``
+    (eq. cross_power_spectrum) of one spectrum ``F`` or a stack of them (leading axis),
+    terms under ``eps`` times each one's largest not whitened."""
+    cross = np.conjugate(F)
+    cross *= G
+    magnitude = np.abs(cross)
+    top = magnitude.max(axis=(-3, -2, -1), keepdims=True)
+    np.maximum(magnitude, eps * top + 1e-300, out=magnitude)
+    window = gaussian_window(shape, sigma, magnitude.dtype.type)
+    cross *= np.divide(window, magnitude, out=magnitude)  # whitened and windowed in one pass
+    return cross
+
+
+def _peak_height(
+    values: NDArray[np.floating], shape: tuple[int, int, int], sigma: float
+) -> NDArray[np.float64]:
+    """Correlation values as peak heights in [0, 1]: a perfect match's value is the
+    window's sum over the full spectrum over the grid size."""
+    scale = _full_window_sum(shape, sigma, values.dtype.type)
+    return np.asarray(values, dtype=np.float64) * float(np.prod(shape)) / scale
 
 
 def phase_correlation(

@@ -7,7 +7,7 @@ import o3d_spectral
 from o3d_spectral import so3
 from o3d_spectral.ascent import peak_ascent
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.search import span_factor
+from o3d_spectral.search import placed_peaks, span_factor
 
 
 @pytest.fixture(scope="module")
@@ -87,3 +87,13 @@ def test_ascent_brings_a_mug_the_law_leaves_16_degrees_off_about_its_axis():
 
     assert error(o3d_spectral.GlobalSearchOption(peak_ascent=False)) > 10.0
     assert error(o3d_spectral.GlobalSearchOption()) < 2.0
+
+
+def test_batched_placement_peaks_are_those_of_one_placement_each(scans):
+    stepper, moving, truth = scans
+    rotations = [truth[:3, :3], *so3.uniform_rotations(12)]
+    for factor in (1.0, 3.0):
+        one_each = [stepper.locate(moving, R, factor=factor)[1] for R in rotations]
+        batched = placed_peaks(stepper, moving, rotations, factor)
+        np.testing.assert_allclose(batched, one_each, rtol=1e-5)
+    assert np.argmax(batched) == 0  # the truth places best
