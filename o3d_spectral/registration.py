@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import centring
 from ._checks import check_instance, check_number, check_transformation
-from .ascent import peak_ascent
+from .ascent import best_ascent
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
 from .law import Climb, climb
@@ -335,8 +335,10 @@ def registration_spectral_global(
     result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked]
     result.confidence = confidence([(score, M) for M, score in result.hypotheses])
     _, pose, result.translation_peak = ranked[0]
-    if search.peak_ascent:
-        ascended = peak_ascent(run.stepper, run.moving, pose)
+    if search.peak_ascent:  # between two views, from the best of every climb's best
+        two_views = run.stepper.two_views(run.moving)
+        starts = [M for _, M, _ in ranked] if two_views else [pose]
+        ascended = best_ascent(run.stepper, run.moving, starts)
         pose = ascended.transformation(run.moving.centroid)
         result.translation_peak = ascended.translation_peak
     transformation = pose @ run.init

@@ -5,7 +5,7 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral import so3
-from o3d_spectral.ascent import peak_ascent
+from o3d_spectral.ascent import best_ascent, peak_ascent
 from o3d_spectral.harness.real import load_cases
 from o3d_spectral.search import placed_peaks, span_factor
 
@@ -97,3 +97,17 @@ def test_batched_placement_peaks_are_those_of_one_placement_each(scans):
         batched = placed_peaks(stepper, moving, rotations, factor)
         np.testing.assert_allclose(batched, one_each, rtol=1e-5)
     assert np.argmax(batched) == 0  # the truth places best
+
+
+def test_best_ascent_starts_from_the_pose_whose_coarse_ascent_peaks_highest(scans):
+    stepper, moving, truth = scans
+    starts = []
+    for angle, axis in ((150.0, (0.0, 0.0, 1.0)), (15.0, (0.3, -0.8, 0.5))):
+        start = truth.copy()
+        turn = np.deg2rad(angle) * np.asarray(axis) / np.linalg.norm(axis)
+        start[:3, :3] = so3.exp(turn) @ truth[:3, :3]
+        starts.append(start)
+    best = best_ascent(stepper, moving, starts).transformation(moving.centroid)
+    assert np.rad2deg(so3.rotation_angle(best[:3, :3].T @ truth[:3, :3])) < 3.0
+    alone = best_ascent(stepper, moving, starts[:1])  # one start: the full ascent from it
+    np.testing.assert_array_equal(alone.rotation, peak_ascent(stepper, moving, starts[0]).rotation)
