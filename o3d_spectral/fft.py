@@ -25,7 +25,10 @@ try:  # pragma: no cover - exercised by whichever backend is installed
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["RealFFT3", "fft_plan", "next_fast_len", "backend", "batch_forward", "batch_inverse"]
+__all__ = [
+    "RealFFT3", "fft_plan", "next_fast_len", "backend", "padded_forward", "cropped_inverse",
+    "batch_inverse",
+]
 
 
 def backend(shape: tuple[int, ...], planning: str = "estimate") -> str:
@@ -101,19 +104,55 @@ class RealFFT3:
             return scipy.fft.irfftn(spectrum, s=self.shape, workers=self.threads)
         return self._inverse(spectrum)
 
+    def forward_padded(self, block: NDArray[np.floating]) -> NDArray[np.complexfloating]:
+        """Spectrum of ``block`` zero-padded from its corner to :attr:`shape`
+        (:func:`padded_forward`; FFTW transforms the padded grid whole)."""
+        if self._fftw or self.threads != 1:
+            grid = np.zeros(self.shape, dtype=self.dtype)
+            grid[: block.shape[0], : block.shape[1], : block.shape[2]] = block
+            return self.forward(grid)
+        return padded_forward(block.astype(self.dtype, copy=False), self.shape)
 
-def batch_forward(grids: NDArray[np.floating]) -> NDArray[np.complexfloating]:
-    """Half spectra of a stack of real grids (B, nx, ny, nz), in one call of pocketfft
-    (``scipy.fft``) over the last three axes: many small grids transformed without a
-    Python call each (:meth:`o3d_spectral.target_grid.TargetGrid.peaks`)."""
-    return scipy.fft.rfftn(grids, axes=(-3, -2, -1))
+    def inverse_cropped(
+        self, spectrum: NDArray[np.complexfloating], size: tuple[int, int, int]
+    ) -> NDArray[np.floating]:
+        """The leading block of ``size`` of :meth:`inverse` (:func:`cropped_inverse`;
+        FFTW transforms the grid whole)."""
+        if self._fftw or self.threads != 1:
+            return self.inverse(spectrum)[: size[0], : size[1], : size[2]]
+        return cropped_inverse(spectrum, self.shape, size)
+
+
+def padded_forward(
+    blocks: NDArray[np.floating], shape: tuple[int, int, int]
+) -> NDArray[np.complexfloating]:
+    """Half spectrum of a real block zero-padded from its corner to ``shape``, or of each
+    of a stack of blocks (B, ...): ``rfftn`` of the padded grid, by pocketfft
+    (``scipy.fft``) one axis at a time, transforming only the lines the block reaches
+    (a block spanning 40% of each side: half the work of the whole grid's transform;
+    equal to the whole grid's to rounding)."""
+    out = scipy.fft.rfft(blocks, n=shape[2], axis=-1)
+    out = scipy.fft.fft(out, n=shape[1], axis=-2)
+    return scipy.fft.fft(out, n=shape[0], axis=-3)
+
+
+def cropped_inverse(
+    spectrum: NDArray[np.complexfloating], shape: tuple[int, int, int],
+    size: tuple[int, int, int],
+) -> NDArray[np.floating]:
+    """The leading block of ``size`` of the real grid of ``shape`` whose half spectrum is
+    ``spectrum`` (``irfftn(spectrum)[:size[0], :size[1], :size[2]]``), by pocketfft one
+    axis at a time, computing only the lines the block needs."""
+    out = scipy.fft.ifft(spectrum, axis=0)[: size[0]]
+    out = scipy.fft.ifft(out, axis=1)[:, : size[1]]
+    return scipy.fft.irfft(out, n=shape[2], axis=2)[:, :, : size[2]]
 
 
 def batch_inverse(
     spectra: NDArray[np.complexfloating], shape: tuple[int, int, int]
 ) -> NDArray[np.floating]:
-    """Real grids of ``shape`` from a stack of half spectra (B, nx, ny, nz // 2 + 1), the
-    inverse of :func:`batch_forward`."""
+    """Real grids of ``shape`` from a stack of half spectra (B, nx, ny, nz // 2 + 1), in
+    one call of pocketfft over the last three axes."""
     return scipy.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1))
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .cloud import extent
-from .fft import RealFFT3, batch_forward, fft_plan, next_fast_len
+from .fft import RealFFT3, fft_plan, next_fast_len, padded_forward
 from .grid import Box, Lattice, check_memory, splat
 from .translation import cross_power_peak, peak_heights
 
@@ -189,18 +189,17 @@ class TargetGrid:
         box = self.moving_box(radius, centre)
         fixed = self.search_box(radius, around)
         fft, spectrum = self._fft(fixed, box, radius)
-        buffer = np.empty(fft.shape, dtype=fft.dtype)  # zeroed by splat
-        splat(moved, box, mode=self.weighting, out=buffer)
-        buffer /= np.linalg.norm(buffer)
+        grid = splat(moved, box, mode=self.weighting, out=np.empty(box.shape, fft.dtype))
+        grid /= np.linalg.norm(grid)
         if self._unpadded(fixed, radius):  # the shifts keeping the moving grid in the block
             bounds = {"searched": tuple(np.subtract(fft.shape, box.shape) + 1)}
         else:  # every shift, read unambiguously
             bounds = {"positive_below": fixed.shape}
         peak = cross_power_peak(
-            fft.forward(buffer), spectrum, fft, sigma=self.peak_width, **bounds
+            fft.forward_padded(grid), spectrum, fft, sigma=self.peak_width, **bounds
         )
         shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
-        return Placement(shift, peak.peak, self._cost(buffer, box))
+        return Placement(shift, peak.peak, self._cost(grid, box))
 
     def peaks(
         self, moved: Iterable[NDArray[np.float64]], radius: float, centre: NDArray[np.float64]
@@ -221,13 +220,12 @@ class TargetGrid:
         batch = max(1, BATCH_BYTES // (fft.dtype.itemsize * int(np.prod(fft.shape))))
         sets, heights = iter(moved), []
         while chunk := list(islice(sets, batch)):
-            grids = np.empty((len(chunk), *fft.shape), dtype=fft.dtype)
+            grids = np.empty((len(chunk), *box.shape), dtype=fft.dtype)
             for grid, points in zip(grids, chunk, strict=True):
                 splat(points, box, mode=self.weighting, out=grid)
                 grid /= np.linalg.norm(grid)
-            heights.append(
-                peak_heights(batch_forward(grids), spectrum, fft.shape, sigma=self.peak_width)
-            )
+            F = padded_forward(grids, fft.shape)
+            heights.append(peak_heights(F, spectrum, fft.shape, sigma=self.peak_width))
         return np.concatenate(heights) if heights else np.zeros(0)
 
     def _cost(self, grid: NDArray[np.floating], box: Box) -> float:

@@ -150,15 +150,16 @@ def cross_power_peak(
     PeakEstimate
         The shift of ``g`` relative to ``f``, voxels.
     """
-    delta = fft.inverse(_whitened(F, G, fft.shape, sigma, eps))
-    shape = np.asarray(delta.shape)
-    if searched is not None:
+    cross = _whitened(F, G, fft.shape, sigma, eps)
+    shape = np.asarray(fft.shape)
+    if searched is not None:  # only the searched block of the correlation is computed
         bounds = np.minimum(searched, shape)
-        valid = delta[: bounds[0], : bounds[1], : bounds[2]]
-        index = np.unravel_index(int(np.argmax(valid)), valid.shape)
+        delta = fft.inverse_cropped(cross, tuple(int(b) for b in bounds))
+        index = np.unravel_index(int(np.argmax(delta)), delta.shape)
         integer = np.asarray(index)
     else:
         bounds = None
+        delta = fft.inverse(cross)
         index = np.unravel_index(int(np.argmax(delta)), delta.shape)
         limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
         integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from o3d_spectral.fft import RealFFT3, batch_forward
+from o3d_spectral.fft import RealFFT3, padded_forward
 from o3d_spectral.grid import Lattice, splat
 from o3d_spectral.translation import cross_power_peak, peak_heights, phase_correlation
 
@@ -117,6 +117,19 @@ def test_batched_peak_heights_match_one_correlation_each(rng):
     moving = np.stack([np.roll(fixed, (k, -k, 2 * k), axis=(0, 1, 2)) for k in range(3)])
     moving[2] = rng.random((24, 20, 18))  # unrelated: a low peak
     one_each = [cross_power_peak(np.array(fft.forward(m)), G, fft, sigma=1.0).peak for m in moving]
-    batched = peak_heights(batch_forward(moving), G, fft.shape, sigma=1.0)
+    batched = peak_heights(padded_forward(moving, fft.shape), G, fft.shape, sigma=1.0)
     np.testing.assert_allclose(batched, one_each, rtol=1e-5)
     assert batched[0] > 0.9 and batched[1] > 0.9 and batched[2] < 0.5
+
+
+@pytest.mark.parametrize("shape", [(32, 64, 16), (30, 36, 35)])  # FFTW, pocketfft
+def test_padded_and_cropped_transforms_are_those_of_the_whole_grid(shape, rng):
+    plan = RealFFT3(shape)
+    block = rng.random((11, 20, 9))
+    grid = np.zeros(shape)
+    grid[:11, :20, :9] = block
+    spectrum = np.fft.rfftn(grid)
+    np.testing.assert_allclose(plan.forward_padded(block), spectrum, atol=1e-9 * grid.size)
+    whole = np.fft.irfftn(spectrum, s=shape, axes=(0, 1, 2))
+    np.testing.assert_allclose(plan.inverse_cropped(spectrum, (7, 13, 5)), whole[:7, :13, :5],
+                               atol=1e-12)
