@@ -210,7 +210,7 @@ class GlobalSearchOption:
         For two single views: rotations spread evenly over SO(3) (this many over the
         whole of it; those that keep the two sensors within 110 degrees are tried) placed
         by phase correlation on a coarse grid, the best 16 then as the other candidates
-        (:func:`o3d_spectral.search.sweep_hypotheses`); 0 tries none.
+        (:func:`o3d_spectral.search.swept_rotations`); 0 tries none.
     peak_ascent : bool
         Turn the best pose to where the phase correlation's peak is highest
         (:func:`o3d_spectral.ascent.peak_ascent`) before the polish. Between two single
@@ -219,12 +219,13 @@ class GlobalSearchOption:
         3 successes (occluded views) into failures.
     coarse_placements : int
         For two single views (two scans: :meth:`o3d_spectral.SpectralStepper.two_views`),
-        the candidates are first placed on grids of twice the voxel (an eighth of the
-        FFT) and only this many, the highest, are placed at full resolution; 0 places
-        every one at full resolution. Half the candidates: with 12, a YCB-Video foam
-        brick crop lost its true rotation to a 180-degree turn the coarse grid ranked
-        higher. Not for a model against a view (occluded suite: 3 instances lost, 0 won)
-        or a scene (the coarse grid ranks clutter above the object).
+        the candidates (the EGI's, the shells' and the sweep's, about 80) are first placed
+        on grids of twice the voxel (an eighth of the FFT) and only this many, the
+        highest, are placed at full resolution; 0 places every one at full resolution.
+        With 12 of the EGI's 32 alone, a YCB-Video foam brick crop lost its true rotation
+        to a 180-degree turn the coarse grid ranked higher. Not for a model against a
+        view (occluded suite: 3 instances lost, 0 won) or a scene (the coarse grid ranks
+        clutter above the object).
     """
 
     hypotheses: int = 32
@@ -237,7 +238,7 @@ class GlobalSearchOption:
     shell_hypotheses: int = 32
     sweep_rotations: int = 1000
     peak_ascent: bool = True
-    coarse_placements: int = 16
+    coarse_placements: int = 32
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)

@@ -6,11 +6,12 @@ The paper's law is a local gradient ascent. From an unknown pose,
 1. **Candidates**: the highest peaks of the rotation correlation evaluated over the whole
    of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`);
    for two single views, also those of the correlation of their voxel grids' spectra on
-   spherical shells (:func:`shell_hypotheses`) and a sweep of rotations spread evenly
-   over SO(3), ranked by a coarse phase correlation (:func:`sweep_hypotheses`).
+   spherical shells (:func:`shell_rotations`) and the best of a sweep of rotations spread
+   evenly over SO(3), ranked by a coarse phase correlation (:func:`swept_rotations`).
 2. **Placement**: each candidate rotation is placed by one phase correlation and scored by
    that correlation's peak height (how well the turned grid matches under any shift):
-   :func:`hypotheses`.
+   :func:`hypotheses`. Between two views, all the candidates are ranked on a coarse grid
+   first and only the best are placed at full resolution.
 3. **Focus**: in a scene larger than the moving cloud, the scene's EGI is restricted to a
    ball about each of the best distinct places (:func:`places`) and searched again there.
 4. **Climbs**: the best hypotheses are climbed a few iterations by the law
@@ -38,7 +39,7 @@ from .stepper import MovingCloud, SpectralStepper
 from .target_grid import COARSE_FACTOR
 
 __all__ = [
-    "Hypothesis", "hypotheses", "shell_hypotheses", "sweep_hypotheses", "places",
+    "Hypothesis", "hypotheses", "egi_rotations", "shell_rotations", "swept_rotations", "places",
     "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
     "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor", "SWEEP_SENSOR_ANGLE",
     "placed_peaks",
@@ -46,7 +47,7 @@ __all__ = [
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
 DISTINCT_ANGLE = np.deg2rad(10.0)
-#: Voxels of the grid the sweep's rotations are first placed on (:func:`sweep_hypotheses`:
+#: Voxels of the grid the sweep's rotations are first placed on (:func:`swept_rotations`:
 #: a 27th of the FFT; a true rotation 10-15 degrees off the nearest swept one still
 #: placed best or nearly on the dragon scans, 44-54 voxels across) ...
 SWEEP_FACTOR = 3.0
@@ -59,7 +60,7 @@ SWEEP_SPAN = 18.0
 #: the servo's tabletop captures (74-80); two 1.6 m RGB-D frames at 1 cm placed each of
 #: their 48 candidates in 0.27 s at the voxel, in a tenth of that on 2.5-voxel cells.
 PLACEMENT_SPAN = 96.0
-#: The sweep's rotations placed again as the other candidates (:data:`PLACEMENT_SPAN`).
+#: The sweep's rotations that join the other candidates.
 SWEEP_PLACEMENTS = 16
 #: Largest angle (radians) between the two views' sensor directions the sweep tries
 #: (from the normals, :func:`o3d_spectral.normals.view_direction`: 62-86 degrees on
@@ -111,26 +112,32 @@ def hypotheses(
 ) -> list[Hypothesis]:
     """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3), each placed by phase
     correlation (near ``around``, metres, when given), highest placed peak first."""
-    grid = stepper.rotation_grid(
-        moving, search.samples(stepper.option.bandwidth), visibility=search.search_visibility
-    )
-    rotations = peaks(grid, count=search.hypotheses)
+    rotations = egi_rotations(stepper, moving, search)
     return _placed(stepper, moving, rotations, around, search.coarse_placements)
 
 
-def shell_hypotheses(
-    stepper: SpectralStepper, moving: MovingCloud, count: int, coarse_placements: int = 0
-) -> list[Hypothesis]:
-    """The ``count`` highest peaks over SO(3) of the correlation of the two clouds'
-    spectra on spherical shells (:mod:`o3d_spectral.shells`), each placed by phase
-    correlation (the ``coarse_placements`` best of a coarse placement only, see
-    :class:`o3d_spectral.GlobalSearchOption`), highest placed peak first."""
+def egi_rotations(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption
+) -> list[tuple[NDArray[np.float64], float]]:
+    """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3) (rotation, value),
+    highest first (:meth:`o3d_spectral.SpectralStepper.rotation_grid`)."""
+    grid = stepper.rotation_grid(
+        moving, search.samples(stepper.option.bandwidth), visibility=search.search_visibility
+    )
+    return peaks(grid, count=search.hypotheses)
+
+
+def shell_rotations(
+    stepper: SpectralStepper, moving: MovingCloud, count: int
+) -> list[tuple[NDArray[np.float64], float]]:
+    """The ``count`` highest peaks over SO(3) (rotation, value) of the correlation of the
+    two clouds' spectra on spherical shells (:mod:`o3d_spectral.shells`), highest first."""
     voxel = shell_voxel(stepper.target_points, moving.points)
     grid = correlation_grid(
         shell_coefficients(moving.points, voxel), shell_coefficients(stepper.target_points, voxel),
         n_alpha=2 * SHELL_BANDWIDTH, n_beta=2 * SHELL_BANDWIDTH,
     )
-    return _placed(stepper, moving, peaks(grid, count=count), None, coarse_placements)
+    return peaks(grid, count=count)
 
 
 def span_factor(stepper: SpectralStepper, moving: MovingCloud, span: float) -> float:
@@ -141,22 +148,22 @@ def span_factor(stepper: SpectralStepper, moving: MovingCloud, span: float) -> f
     return max(1.0, np.ceil(4.0 * moving.radius / (span * stepper.voxel_size)) / 2.0)
 
 
-def sweep_hypotheses(
+def swept_rotations(
     stepper: SpectralStepper, moving: MovingCloud, count: int
-) -> list[Hypothesis]:
-    """For two single views: rotations spread evenly over SO(3), placed by phase
-    correlation, the best first.
+) -> list[tuple[NDArray[np.float64], float]]:
+    """For two single views: the :data:`SWEEP_PLACEMENTS` rotations, of ``count`` spread
+    evenly over SO(3), that place best by phase correlation on a coarse grid (rotation,
+    peak height), best first.
 
     Of the ``count`` rotations of :func:`o3d_spectral.so3.uniform_rotations`, those that
     turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
     fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a
-    moving cloud over :data:`SWEEP_SPAN` of those across), and the
-    :data:`SWEEP_PLACEMENTS` that place best are placed again as the other candidates
-    (:data:`PLACEMENT_SPAN`). Two scans far enough apart share too little of their
-    normals for the EGI's peaks to hold their rotation (dragon scans 48 and 96 degrees:
-    none of the 200 highest within 100 degrees of it, none of the shells' within 50);
-    the peak of a phase correlation, which compares the shapes themselves, is highest
-    there (0.37 on a grid of 2 voxels, against at most 0.23 for the EGI's candidates).
+    moving cloud over :data:`SWEEP_SPAN` of those across). Two scans far enough apart
+    share too little of their normals for the EGI's peaks to hold their rotation (dragon
+    scans 48 and 96 degrees: none of the 200 highest within 100 degrees of it, none of
+    the shells' within 50); the peak of a phase correlation, which compares the shapes
+    themselves, is highest there (0.37 on a grid of 2 voxels, against at most 0.23 for
+    the EGI's candidates).
     """
     rotations = so3.uniform_rotations(count)
     toward = rotations @ moving.reading.view @ stepper.target_reading.view
@@ -164,7 +171,7 @@ def sweep_hypotheses(
     factor = max(SWEEP_FACTOR, span_factor(stepper, moving, SWEEP_SPAN))
     scores = placed_peaks(stepper, moving, rotations, factor)
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
-    return _placed(stepper, moving, [(rotations[i], scores[i]) for i in best], None)
+    return [(rotations[i], float(scores[i])) for i in best]
 
 
 def placed_peaks(
@@ -259,15 +266,13 @@ def global_search(
         The ``search.climbs`` best hypotheses after their climbs, by their best iterate's
         score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
-    ranked = hypotheses(stepper, moving, search)
+    rotations = egi_rotations(stepper, moving, search)
     two_views = stepper.two_views(moving)
     if two_views and search.shell_hypotheses:
-        ranked += shell_hypotheses(
-            stepper, moving, search.shell_hypotheses, search.coarse_placements
-        )
+        rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
     if two_views and search.sweep_rotations:
-        ranked += sweep_hypotheses(stepper, moving, search.sweep_rotations)
-    ranked = _best_first(ranked)
+        rotations += swept_rotations(stepper, moving, search.sweep_rotations)
+    ranked = _placed(stepper, moving, rotations, None, search.coarse_placements)
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)

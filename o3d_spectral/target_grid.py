@@ -208,7 +208,7 @@ class TargetGrid:
         points turned about its centroid ``centre``, radius ``radius``, metres) against
         the whole fixed grid: :meth:`correlate`'s ``peak`` for each (to rounding), with
         the grids transformed in batches of :data:`BATCH_BYTES`. For ranking many
-        rotations (:func:`o3d_spectral.search.sweep_hypotheses`), where one correlation
+        rotations (:func:`o3d_spectral.search.swept_rotations`), where one correlation
         each would spend more time in Python than in its small FFTs.
 
         Returns
