@@ -189,8 +189,7 @@ class TargetGrid:
         box = self.moving_box(radius, centre)
         fixed = self.search_box(radius, around)
         fft, spectrum = self._fft(fixed, box, radius)
-        grid = splat(moved, box, mode=self.weighting, out=np.empty(box.shape, fft.dtype))
-        grid /= np.linalg.norm(grid)
+        grid = self._unit_grid(moved, box, np.empty(box.shape, fft.dtype))
         if self._unpadded(fixed, radius):  # the shifts keeping the moving grid in the block
             bounds = {"searched": tuple(np.subtract(fft.shape, box.shape) + 1)}
         else:  # every shift, read unambiguously
@@ -222,11 +221,19 @@ class TargetGrid:
         while chunk := list(islice(sets, batch)):
             grids = np.empty((len(chunk), *box.shape), dtype=fft.dtype)
             for grid, points in zip(grids, chunk, strict=True):
-                splat(points, box, mode=self.weighting, out=grid)
-                grid /= np.linalg.norm(grid)
+                self._unit_grid(points, box, grid)
             F = padded_forward(grids, fft.shape)
             heights.append(peak_heights(F, spectrum, fft.shape, sigma=self.peak_width))
         return np.concatenate(heights) if heights else np.zeros(0)
+
+    def _unit_grid(
+        self, moved: NDArray[np.float64], box: Box, out: NDArray[np.floating]
+    ) -> NDArray[np.floating]:
+        """``out`` (of ``box.shape``) filled with the moving points splatted on ``box``
+        and scaled to unit norm."""
+        splat(moved, box, mode=self.weighting, out=out)
+        out /= np.linalg.norm(out)
+        return out
 
     def _cost(self, grid: NDArray[np.floating], box: Box) -> float:
         """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice; ``grid`` is
