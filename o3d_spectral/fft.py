@@ -85,6 +85,9 @@ class RealFFT3:
         self.spectrum_shape = (*self.shape[:2], self.shape[2] // 2 + 1)
         self.threads = threads
         self._fftw = backend(self.shape, planning) == "pyfftw"
+        # pocketfft on one thread transforms only the lines a block reaches; FFTW's plans,
+        # and several workers, take the grid whole
+        self._pruned = not self._fftw and threads == 1
         if self._fftw:
             real = pyfftw.empty_aligned(self.shape, dtype=self.dtype)
             spec = pyfftw.empty_aligned(self.spectrum_shape, dtype=complex_dtype)
@@ -107,7 +110,7 @@ class RealFFT3:
     def forward_padded(self, block: NDArray[np.floating]) -> NDArray[np.complexfloating]:
         """Spectrum of ``block`` zero-padded from its corner to :attr:`shape`
         (:func:`padded_forward`; FFTW transforms the padded grid whole)."""
-        if self._fftw or self.threads != 1:
+        if not self._pruned:
             grid = np.zeros(self.shape, dtype=self.dtype)
             grid[: block.shape[0], : block.shape[1], : block.shape[2]] = block
             return self.forward(grid)
@@ -118,7 +121,7 @@ class RealFFT3:
     ) -> NDArray[np.floating]:
         """The leading block of ``size`` of :meth:`inverse` (:func:`cropped_inverse`;
         FFTW transforms the grid whole)."""
-        if self._fftw or self.threads != 1:
+        if not self._pruned:
             return self.inverse(spectrum)[: size[0], : size[1], : size[2]]
         return cropped_inverse(spectrum, self.shape, size)
 

@@ -113,7 +113,9 @@ def hypotheses(
     """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3), each placed by phase
     correlation (near ``around``, metres, when given), highest placed peak first."""
     rotations = egi_rotations(stepper, moving, search)
-    return _placed(stepper, moving, rotations, around, search.coarse_placements)
+    two_views = around is None and stepper.two_views(moving)
+    return _placed(stepper, moving, rotations, around, search.coarse_placements,
+                   two_views=two_views)
 
 
 def egi_rotations(
@@ -188,16 +190,16 @@ def placed_peaks(
 
 def _placed(
     stepper: SpectralStepper, moving: MovingCloud, rotations: list[tuple[NDArray, float]],
-    around: ArrayLike | None, coarse_placements: int = 0,
+    around: ArrayLike | None, coarse_placements: int = 0, *, two_views: bool = False,
 ) -> list[Hypothesis]:
     """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
     near ``around`` (anywhere when None), highest placed peak first. Placed anywhere
-    between two views (:meth:`o3d_spectral.SpectralStepper.two_views`): on a grid where
-    the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the
+    between ``two_views`` (:meth:`o3d_spectral.SpectralStepper.two_views`): on a grid
+    where the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the
     ``coarse_placements`` (when over 0) that place best on one twice as coarse
     (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
     factor = 1.0
-    if around is None and stepper.two_views(moving):
+    if around is None and two_views:
         factor = span_factor(stepper, moving, PLACEMENT_SPAN)
         if 0 < coarse_placements < len(rotations):
             coarse = COARSE_FACTOR * factor
@@ -272,7 +274,8 @@ def global_search(
         rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
     if two_views and search.sweep_rotations:
         rotations += swept_rotations(stepper, moving, search.sweep_rotations)
-    ranked = _placed(stepper, moving, rotations, None, search.coarse_placements)
+    ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
+                     two_views=two_views)
     focus = False
     if search.egi_focus:
         ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
