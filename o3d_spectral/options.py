@@ -194,6 +194,15 @@ class GlobalSearchOption:
     focus_places : int
         With ``egi_focus``: how many places the EGI is focused on, the best distinct
         places (over the moving cloud's radius apart) where the first hypotheses put it.
+    scene_hypotheses : int
+        In a scene (a fixed cloud over 1.5 times the moving one's radius,
+        :meth:`o3d_spectral.target_grid.TargetGrid.holds_more`) searched with
+        ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
+        scene. They only have to find the places the EGI is focused on, where the
+        focused EGI's ``hypotheses`` peaks are placed; the lower ones mostly put the
+        object on the clutter, at about 13 ms each on a tabletop's grid. Cluttered suite
+        (240 instances): 145 successes with 16 as with 32, in 24% less time; 130 with 8.
+        YCB-Video frame: 67% in every normal mode with 16, 47 / 47 / 60% with 32.
     search_visibility : bool
         Against a single view (``CloudOption.target_viewpoint``): correlate the fixed EGI
         with the moving one as the sensor would see it at each rotation (weighted by the
@@ -233,6 +242,7 @@ class GlobalSearchOption:
     hypothesis_iterations: int = 12
     egi_focus: bool = True
     focus_places: int = 3
+    scene_hypotheses: int = 16
     search_visibility: bool = True
     search_samples: int | None = None
     shell_hypotheses: int = 32
@@ -246,7 +256,7 @@ class GlobalSearchOption:
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
-        for name in ("hypothesis_iterations", "focus_places"):
+        for name in ("hypothesis_iterations", "focus_places", "scene_hypotheses"):
             check_int(name, getattr(self, name), low=1)
         for name in ("egi_focus", "search_visibility", "peak_ascent"):
             check_bool(name, getattr(self, name))

@@ -14,6 +14,8 @@ The paper's law is a local gradient ascent. From an unknown pose,
    first and only the best are placed at full resolution.
 3. **Focus**: in a scene larger than the moving cloud, the scene's EGI is restricted to a
    ball about each of the best distinct places (:func:`places`) and searched again there.
+   Only the whole EGI's ``scene_hypotheses`` highest peaks are placed over the whole
+   scene: they find the places, and lower ones mostly put the object on the clutter.
 4. **Climbs**: the best hypotheses are climbed a few iterations by the law
    (:func:`o3d_spectral.law.climb`) and ranked by their best iterate
    (:meth:`o3d_spectral.law.Climb.best_iterate`).
@@ -269,6 +271,8 @@ def global_search(
         score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
     rotations = egi_rotations(stepper, moving, search)
+    if search.egi_focus and stepper.grid.holds_more(moving.radius):  # they find the places
+        rotations = rotations[: search.scene_hypotheses]
     two_views = stepper.two_views(moving)
     if two_views and search.shell_hypotheses:
         rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
