@@ -199,10 +199,11 @@ class GlobalSearchOption:
         :meth:`o3d_spectral.target_grid.TargetGrid.holds_more`) searched with
         ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
         scene. They only have to find the places the EGI is focused on, where the
-        focused EGI's ``hypotheses`` peaks are placed; the lower ones mostly put the
-        object on the clutter, at about 13 ms each on a tabletop's grid. Cluttered suite
-        (240 instances): 145 successes with 16 as with 32, in 24% less time; 130 with 8.
-        YCB-Video frame: 67% in every normal mode with 16, 47 / 47 / 60% with 32.
+        focused EGI's ``hypotheses`` peaks are placed; each costs a phase correlation on
+        the whole scene's grid (about 13 ms on a tabletop). Cluttered suite (240
+        instances): 145 successes with 16 as with 32 (12 won, 12 lost), in 24% less time;
+        130 with 8. YCB-Video frame: 67% in every normal mode with 16, 47 / 47 / 60% with
+        32.
     search_visibility : bool
         Against a single view (``CloudOption.target_viewpoint``): correlate the fixed EGI
         with the moving one as the sensor would see it at each rotation (weighted by the

@@ -15,7 +15,7 @@ The paper's law is a local gradient ascent. From an unknown pose,
 3. **Focus**: in a scene larger than the moving cloud, the scene's EGI is restricted to a
    ball about each of the best distinct places (:func:`places`) and searched again there.
    Only the whole EGI's ``scene_hypotheses`` highest peaks are placed over the whole
-   scene: they find the places, and lower ones mostly put the object on the clutter.
+   scene: they only have to find the places.
 4. **Climbs**: the best hypotheses are climbed a few iterations by the law
    (:func:`o3d_spectral.law.climb`) and ranked by their best iterate
    (:meth:`o3d_spectral.law.Climb.best_iterate`).
