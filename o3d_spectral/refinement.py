@@ -125,11 +125,11 @@ def refine(
             sparse, target, option.distance * voxel_size, transformation
         ).fitness
 
-    start = point_to_plane_refinement(sparse, target, voxel_size, init, option.distance)
+    start = init  # with nothing to compare, the whole source is polished from init
     if option.wide_distance is not None:
+        plain = point_to_plane_refinement(sparse, target, voxel_size, init, option.distance)
         wide = point_to_plane_icp(sparse, target, option.wide_distance * voxel_size, init)
         widened = point_to_plane_refinement(sparse, target, voxel_size, wide, option.distance)
-        if fitness(widened) > fitness(start):
-            start = widened
+        start = widened if fitness(widened) > fitness(plain) else plain
     refined = point_to_plane_refinement(source, target, voxel_size, start, option.distance)
     return init if fitness(refined) <= GUARD_SHARE * fitness(init) else refined

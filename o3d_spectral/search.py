@@ -115,9 +115,8 @@ def hypotheses(
     """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3), each placed by phase
     correlation (near ``around``, metres, when given), highest placed peak first."""
     rotations = egi_rotations(stepper, moving, search)
-    two_views = around is None and stepper.two_views(moving)
     return _placed(stepper, moving, rotations, around, search.coarse_placements,
-                   two_views=two_views)
+                   two_views=stepper.two_views(moving))
 
 
 def egi_rotations(
