@@ -42,9 +42,9 @@ from .target_grid import COARSE_FACTOR
 
 __all__ = [
     "Hypothesis", "hypotheses", "egi_rotations", "shell_rotations", "swept_rotations", "places",
-    "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN", "SWEEP_FACTOR",
-    "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor", "SWEEP_SENSOR_ANGLE",
-    "placed_peaks",
+    "ranked_hypotheses", "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN",
+    "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor",
+    "SWEEP_SENSOR_ANGLE", "placed_peaks",
 ]
 
 #: Rotations further apart than this (radians) are distinct hypotheses (confidence).
@@ -247,6 +247,27 @@ def _focused_hypotheses(
     return _best_first(ranked), focus
 
 
+def ranked_hypotheses(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption
+) -> tuple[list[Hypothesis], bool]:
+    """Steps 1-3 of the search: the candidates, placed and (in a scene) focused, best
+    placed first; and whether any focus applied (the climbs then match the scene's normals
+    near each hypothesis only)."""
+    rotations = egi_rotations(stepper, moving, search)
+    if search.egi_focus and stepper.grid.holds_more(moving.radius):  # they find the places
+        rotations = rotations[: search.scene_hypotheses]
+    two_views = stepper.two_views(moving)
+    if two_views and search.shell_hypotheses:
+        rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
+    if two_views and search.sweep_rotations:
+        rotations += swept_rotations(stepper, moving, search.sweep_rotations)
+    ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
+                     two_views=two_views)
+    if not search.egi_focus:
+        return ranked, False
+    return _focused_hypotheses(stepper, moving, search, ranked)
+
+
 def global_search(
     stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
     iterations: int, tolerance: tuple[float, float], init: NDArray[np.float64], start: float,
@@ -269,19 +290,8 @@ def global_search(
         The ``search.climbs`` best hypotheses after their climbs, by their best iterate's
         score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
-    rotations = egi_rotations(stepper, moving, search)
-    if search.egi_focus and stepper.grid.holds_more(moving.radius):  # they find the places
-        rotations = rotations[: search.scene_hypotheses]
+    ranked, focus = ranked_hypotheses(stepper, moving, search)
     two_views = stepper.two_views(moving)
-    if two_views and search.shell_hypotheses:
-        rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
-    if two_views and search.sweep_rotations:
-        rotations += swept_rotations(stepper, moving, search.sweep_rotations)
-    ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
-                     two_views=two_views)
-    focus = False
-    if search.egi_focus:
-        ranked, focus = _focused_hypotheses(stepper, moving, search, ranked)
     climbs = [h.climb(moving, egi_scored=not two_views) for h in ranked[: search.climbs]]
     for state in climbs:
         if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
