@@ -1,6 +1,7 @@
-"""Benchmark: the global spectral call against FPFH-RANSAC, time and success (issue 17).
+"""Benchmark: the global spectral call against FPFH-RANSAC, time and success.
 
-Both methods run on the same instances in the same run, one thread each, and each call is
+Both methods run on the same instances in the same run, one thread each (``--all-cores``:
+both at their defaults on every core), and each call is
 timed once with ``time.perf_counter`` around the call only (loading, rotating and scoring
 are outside): one untimed call of each method on the first instance warms up FFT plans and
 caches first.
@@ -25,19 +26,25 @@ Groups and voxel sizes:
   translation error at the source centroid < 1 cm (``real.case_errors``).
 
 Reports per group: n, median and p90 time of each method (over the instances), the ratios
-spectral / FPFH of the medians and of the p90s, and each method's success rate. Prints a
+spectral / FPFH of the medians and of the p90s, each method's success rate, and the share
+of spectral calls that stopped early (``result.confirmed``) with the number of those that
+failed. Prints a
 Markdown table and writes ``instances.csv``, ``summary.csv`` and ``summary.md`` to ``--out``.
 
 Usage: python eval/bench_speed.py --suites out/suites --out out/bench_speed
-       [--rotations 5] [--groups full dragon_24 ...] [--limit 3]
+       [--rotations 5] [--groups full dragon_24 ...] [--limit 3] [--all-cores]
 """
 
 from __future__ import annotations
 
 import os
+import sys
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one thread for both methods
+ONE_THREAD = "--all-cores" not in sys.argv
+if ONE_THREAD:
+    for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                 "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")  # one thread for both methods
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
@@ -58,7 +65,8 @@ from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
 from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
 
-o3d.utility.set_max_threads(1)  # Open3D's TBB pool has no environment variable
+if ONE_THREAD:
+    o3d.utility.set_max_threads(1)  # Open3D's TBB pool has no environment variable
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 SUITE_VOXEL = 0.008
@@ -79,14 +87,14 @@ class Task:
     score: object  # (T) -> (rotation_error_deg, translation_error_m, success)
 
 
-def spectral_global(task: Task) -> np.ndarray:
+def spectral_global(task: Task) -> tuple[np.ndarray, dict]:
     result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel)
-    return np.asarray(result.transformation)
+    return np.asarray(result.transformation), {"confirmed": result.confirmed}
 
 
-def fpfh_ransac(task: Task) -> np.ndarray:
+def fpfh_ransac(task: Task) -> tuple[np.ndarray, dict]:
     transformation, _ = get_method("fpfh_ransac")(task.source, task.target, task.voxel, task.seed)
-    return transformation
+    return transformation, {"confirmed": False}
 
 
 CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}
@@ -123,7 +131,7 @@ def run_task(task: Task) -> list[dict]:
     rows = []
     for method in METHODS:
         start = time.perf_counter()
-        T = CALLS[method](task)
+        T, extra = CALLS[method](task)
         seconds = time.perf_counter() - start
         rot, tra, success = task.score(T)
         rows.append({
@@ -131,6 +139,7 @@ def run_task(task: Task) -> list[dict]:
             "voxel_m": task.voxel, "source_points": len(task.source.points),
             "target_points": len(task.target.points), "seconds": seconds,
             "rotation_error_deg": rot, "translation_error_m": tra, "success": bool(success),
+            **extra,
         })
     return rows
 
@@ -148,6 +157,9 @@ def summarise(rows: list[dict], groups: list[str]) -> list[dict]:
             line[f"{m}_median_s"] = float(np.median(t))
             line[f"{m}_p90_s"] = float(np.percentile(t, 90))
             line[f"{m}_success"] = float(np.mean([r["success"] for r in picked[m]]))
+        confirmed = [r for r in picked[METHODS[0]] if r["confirmed"]]
+        line["early_stops"] = len(confirmed) / line["n"]
+        line["early_stops_wrong"] = sum(not r["success"] for r in confirmed)
         a, b = METHODS
         line["ratio_median"] = line[f"{a}_median_s"] / line[f"{b}_median_s"]
         line["ratio_p90"] = line[f"{a}_p90_s"] / line[f"{b}_p90_s"]
@@ -157,14 +169,16 @@ def summarise(rows: list[dict], groups: list[str]) -> list[dict]:
 
 def markdown(summary: list[dict]) -> str:
     head = ("| group | n | spectral median s | spectral p90 s | FPFH median s | FPFH p90 s "
-            "| ratio median | ratio p90 | spectral success | FPFH success |")
-    lines = [head, "|" + " --- |" * 10]
+            "| ratio median | ratio p90 | spectral success | FPFH success | early stops "
+            "| wrong early stops |")
+    lines = [head, "|" + " --- |" * 12]
     for s in summary:
         lines.append(
             f"| {s['group']} | {s['n']} | {s['spectral_global_median_s']:.3f} "
             f"| {s['spectral_global_p90_s']:.3f} | {s['fpfh_ransac_median_s']:.3f} "
             f"| {s['fpfh_ransac_p90_s']:.3f} | {s['ratio_median']:.2f} | {s['ratio_p90']:.2f} "
-            f"| {100 * s['spectral_global_success']:.0f}% | {100 * s['fpfh_ransac_success']:.0f}% |"
+            f"| {100 * s['spectral_global_success']:.0f}% | {100 * s['fpfh_ransac_success']:.0f}% "
+            f"| {100 * s['early_stops']:.0f}% | {s['early_stops_wrong']} |"
         )
     return "\n".join(lines)
 
@@ -187,6 +201,8 @@ def main() -> None:
                         default=list(CONDITIONS + real.GROUPS))
     parser.add_argument("--limit", type=int, default=10**9,
                         help="at most this many instances per group (a quick run)")
+    parser.add_argument("--all-cores", action="store_true",
+                        help="both methods at their defaults on every core (default: one thread)")
     args = parser.parse_args()
     groups = [g for g in CONDITIONS + real.GROUPS if g in args.groups]
     if args.suites is None:
@@ -212,9 +228,11 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(args.out / "instances.csv", rows)
     write_csv(args.out / "summary.csv", summary)
-    note = (f"{platform.processor() or platform.machine()}, Open3D {o3d.__version__}, one thread "
+    threads = "one thread" if ONE_THREAD else f"all {os.cpu_count()} cores"
+    note = (f"{platform.processor() or platform.machine()}, Open3D {o3d.__version__}, {threads} "
             f"(Open3D max threads {o3d.utility.get_max_threads()}); each instance timed once; "
-            "ratio = spectral / FPFH-RANSAC")
+            "ratio = spectral / FPFH-RANSAC; early stops: share of spectral calls confirmed "
+            "before the climbs, and how many of those failed")
     (args.out / "summary.md").write_text(table + "\n\n" + note + "\n")
     print(table)
     print(note)

@@ -19,7 +19,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from . import centring
+from . import centring, confirmation
 from ._checks import check_instance, check_number, check_transformation
 from .ascent import best_ascent
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
@@ -34,7 +34,8 @@ from .options import (
 )
 from .refinement import near_pose, refine
 from .result import SpectralRegistrationResult
-from .search import confidence, global_search
+from .search import climbed, confidence, ranked_hypotheses
+from .stages import StageClock
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global"]
@@ -248,13 +249,19 @@ def registration_spectral(
     """
     _check_settings(option=option, criteria=criteria, cloud=cloud, refinement=refinement,
                     max_correspondence_distance=max_correspondence_distance)
-    run = _start(source, target, voxel_size, init, option, criteria, cloud)
-    best = Climb(run.moving.centroid)
-    run.climb(best, run.criteria.max_iteration)
+    clock = StageClock()
+    with clock.stage("prepare"):
+        run = _start(source, target, voxel_size, init, option, criteria, cloud)
+    with clock.stage("law"):
+        best = Climb(run.moving.centroid)
+        run.climb(best, run.criteria.max_iteration)
     result = SpectralRegistrationResult()
     result.translation_peak = best.history[-1].translation_peak
-    return _finish(run, result, best, best.matrix() @ run.init, refinement,
-                   max_correspondence_distance)
+    with clock.stage("polish"):
+        result = _finish(run, result, best, best.matrix() @ run.init, refinement,
+                         max_correspondence_distance)
+    result.stage_times = clock.times
+    return result
 
 
 def registration_spectral_global(
@@ -271,15 +278,27 @@ def registration_spectral_global(
 ) -> SpectralRegistrationResult:
     """Align ``source`` to ``target`` from any relative pose (no initial guess).
 
-    The correlation of the clouds' Extended Gaussian Images is evaluated over the whole
-    of SO(3) at once by SO(3) Fourier transforms; its highest peaks are placed by 3D
-    phase correlation and scored by that correlation's peak height; the best few are
-    climbed by the paper's control law and ranked again; the best is climbed on to
-    convergence, and the best-scoring iterate of all the climbs is turned to where the
-    phase correlation's peak is highest (:mod:`o3d_spectral.ascent`), polished and
-    returned (:mod:`o3d_spectral.search`). Against a single view the search correlates the view
-    with the model as the sensor would see it; against a whole scene it focuses on the
-    scene's normals where the object was located.
+    The call runs these stages (each timed in ``result.stage_times`` and logged at INFO):
+
+    1. **prepare**: both clouds down-sampled, their normals, EGIs and the fixed voxel grid;
+    2. **candidates**: the correlation of the clouds' Extended Gaussian Images over the
+       whole of SO(3) by SO(3) Fourier transforms, its highest peaks (and, between two
+       scans, rotations from the grids' spectra and a sweep) placed by 3D phase
+       correlation and ranked by that correlation's peak height; in a scene, searched
+       again around the best places (:func:`o3d_spectral.search.ranked_hypotheses`);
+    3. **confirm**: the best placed pose polished by a short ICP; where it clearly fits
+       better than any distinct alternative the search stops here
+       (:mod:`o3d_spectral.confirmation`, ``result.confirmed``);
+    4. **climbs**: otherwise the best few are climbed by the paper's control law and
+       ranked again, the best climbed on to convergence
+       (:func:`o3d_spectral.search.climbed`);
+    5. **ascent**: between two scans, the best pose turned to where the phase
+       correlation's peak is highest (:mod:`o3d_spectral.ascent`);
+    6. **polish**: the point-to-plane refinement and Open3D's scoring.
+
+    Against a single view the search correlates the view with the model as the sensor
+    would see it; against a whole scene it focuses on the scene's normals where the
+    object was located.
 
     Parameters
     ----------
@@ -319,30 +338,65 @@ def registration_spectral_global(
                     refinement=refinement, max_correspondence_distance=max_correspondence_distance)
     search = search or GlobalSearchOption()
     search.check_memory(option or SpectralRegistrationOption())  # before any work
-    run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
-    iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
-    tolerance = run.criteria.tolerances(voxel_size)
-    climbs = global_search(run.stepper, run.moving, search, iterations=iterations,
-                           tolerance=tolerance, init=run.init, start=run.start)
-    best = climbs[0]
-    run.climb(best, run.criteria.max_iteration - len(best.history))
-    ranked = []
-    for state in climbs:  # the best iterate of each climb
-        score, pose, record = state.best_iterate()
-        ranked.append((score, pose, record.translation_peak))
-    ranked.sort(key=lambda item: -item[0])
+    clock = StageClock()
+    with clock.stage("prepare"):
+        run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
+    with clock.stage("candidates"):
+        ranked, focus = ranked_hypotheses(run.stepper, run.moving, search)
+    confirmed = None
+    if search.confirm and confirmation.applies(run.stepper, run.moving):
+        with clock.stage("confirm"):
+            fixed = _with_normals(to_legacy(run.target), run.stepper)
+            confirmed = confirmation.confirm(run.stepper, run.moving, fixed, ranked)
+    if confirmed is not None and confirmed.confirmed:
+        best, pose, result = _confirmed(run, confirmed)
+    else:
+        best, pose, result = _searched(run, search, ranked, focus, clock)
+    with clock.stage("polish"):
+        result = _finish(run, result, best, pose @ run.init, refinement,
+                         max_correspondence_distance)
+    result.stage_times = clock.times
+    return result
+
+
+def _confirmed(
+    run: _Run, confirmed: confirmation.Confirmation
+) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
+    """The result of a call whose best placed hypothesis was confirmed
+    (:func:`o3d_spectral.confirmation.confirm`): its pose, with no climb."""
     result = SpectralRegistrationResult()
-    result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked]
+    result.confirmed = True
+    pose = confirmed.transformation
+    result.hypotheses = [(pose @ run.init, confirmed.fit)]
+    result.confidence = confirmed.fit - confirmed.runner_up
+    return Climb(run.moving.centroid, converged=True), pose, result
+
+
+def _searched(
+    run: _Run, search: GlobalSearchOption, ranked: list, focus: bool, clock: StageClock
+) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
+    """The climbs from the best placed hypotheses, the best climbed on to convergence, and
+    (between two views) the peak ascent: the best climb, the pose (4, 4, before
+    ``run.init``) and the result's search fields."""
+    tolerance = run.criteria.tolerances(run.stepper.voxel_size)
+    with clock.stage("climbs"):
+        iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
+        climbs = climbed(run.stepper, run.moving, search, ranked, focus, iterations=iterations,
+                         tolerance=tolerance, init=run.init, start=run.start)
+        best = climbs[0]
+        run.climb(best, run.criteria.max_iteration - len(best.history))
+    ranked_iterates = sorted((state.best_iterate() for state in climbs), key=lambda i: -i[0])
+    result = SpectralRegistrationResult()
+    result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked_iterates]
     result.confidence = confidence([(score, M) for M, score in result.hypotheses])
-    _, pose, result.translation_peak = ranked[0]
-    if search.peak_ascent:  # between two views, from the best of every climb's best
-        two_views = run.stepper.two_views(run.moving)
-        starts = [M for _, M, _ in ranked] if two_views else [pose]
-        ascended = best_ascent(run.stepper, run.moving, starts)
-        pose = ascended.transformation(run.moving.centroid)
-        result.translation_peak = ascended.translation_peak
-    transformation = pose @ run.init
-    return _finish(run, result, best, transformation, refinement, max_correspondence_distance)
+    _, pose, record = ranked_iterates[0]
+    result.translation_peak = record.translation_peak
+    if search.peak_ascent and run.stepper.two_views(run.moving):
+        with clock.stage("ascent"):  # from the best of every climb's best
+            ascended = best_ascent(run.stepper, run.moving, [M for _, M, _ in ranked_iterates])
+            pose = ascended.transformation(run.moving.centroid)
+            result.translation_peak = ascended.translation_peak
+    return best, pose, result
 
 
 for _call in (registration_spectral, registration_spectral_global):

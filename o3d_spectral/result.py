@@ -51,6 +51,16 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         as that sensor would see it (back faces culled); None when matched whole.
     warnings : list of str
         What was logged as a warning during the call (:mod:`o3d_spectral.diagnostics`).
+    confirmed : bool
+        Global call only: the search's best placed hypothesis was confirmed by its fit
+        (:mod:`o3d_spectral.confirmation`) and the climbs were skipped; ``hypotheses``
+        then holds that pose with its fit, ``confidence`` its fit's lead over the best
+        distinct alternative, and ``history`` is empty.
+    stage_times : dict of str to float
+        Seconds spent in each stage of the call, in the order they ran
+        (:mod:`o3d_spectral.stages`): ``prepare``, ``candidates``, ``confirm``,
+        ``climbs``, ``ascent``, ``polish`` for the global call; ``prepare``, ``law``,
+        ``polish`` for the local one.
     """
 
     def __init__(self) -> None:
@@ -67,6 +77,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.target_reading = CloudReading()
         self.target_viewpoint: NDArray[np.float64] | None = None
         self.warnings: list[str] = []
+        self.confirmed = False
+        self.stage_times: dict[str, float] = {}
 
     def __repr__(self) -> str:
         return (

@@ -1,7 +1,7 @@
 """The search over all of SO(3): candidates, placement, focus, climbs and ranking.
 
 The paper's law is a local gradient ascent. From an unknown pose,
-:func:`global_search` starts it from many places instead (METHOD.md, section 7):
+:func:`ranked_hypotheses` and :func:`climbed` start it from many places instead:
 
 1. **Candidates**: the highest peaks of the rotation correlation evaluated over the whole
    of SO(3) by SO(3) Fourier transforms (:meth:`o3d_spectral.SpectralStepper.rotation_grid`);
@@ -16,8 +16,9 @@ The paper's law is a local gradient ascent. From an unknown pose,
    ball about each of the best distinct places (:func:`places`) and searched again there.
    Only the whole EGI's ``scene_hypotheses`` highest peaks are placed over the whole
    scene: they only have to find the places.
-4. **Climbs**: the best hypotheses are climbed a few iterations by the law
-   (:func:`o3d_spectral.law.climb`) and ranked by their best iterate
+4. **Climbs** (:func:`climbed`): unless the best placed hypothesis was confirmed
+   (:mod:`o3d_spectral.confirmation`), the best hypotheses are climbed a few iterations
+   by the law (:func:`o3d_spectral.law.climb`) and ranked by their best iterate
    (:meth:`o3d_spectral.law.Climb.best_iterate`).
 
 The registration then climbs the best on to convergence and returns the best-scoring
@@ -42,7 +43,7 @@ from .target_grid import COARSE_FACTOR
 
 __all__ = [
     "Hypothesis", "hypotheses", "egi_rotations", "shell_rotations", "swept_rotations", "places",
-    "ranked_hypotheses", "global_search", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN",
+    "ranked_hypotheses", "climbed", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN",
     "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor",
     "SWEEP_SENSOR_ANGLE", "placed_peaks",
 ]
@@ -268,17 +269,24 @@ def ranked_hypotheses(
     return _focused_hypotheses(stepper, moving, search, ranked)
 
 
-def global_search(
-    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
-    iterations: int, tolerance: tuple[float, float], init: NDArray[np.float64], start: float,
+def climbed(
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption,
+    ranked: list[Hypothesis], focus: bool, *, iterations: int, tolerance: tuple[float, float],
+    init: NDArray[np.float64], start: float,
 ) -> list[Climb]:
-    """Hypotheses from the whole of SO(3), the best climbed a little, best first.
+    """Step 4 of the search: the ``search.climbs`` best of ``ranked`` climbed a little by the
+    law, best first.
 
     Parameters
     ----------
     stepper : SpectralStepper
     moving : MovingCloud
     search : GlobalSearchOption
+    ranked : list of Hypothesis
+        Placed hypotheses, best first (:func:`ranked_hypotheses`).
+    focus : bool
+        Whether the EGI was focused on places in a scene (:func:`ranked_hypotheses`): each
+        climb then matches the scene's normals near its own points only.
     iterations : int
         Iterations of each climb (at most ``search.hypothesis_iterations``).
     tolerance, init, start
@@ -287,10 +295,9 @@ def global_search(
     Returns
     -------
     list of Climb
-        The ``search.climbs`` best hypotheses after their climbs, by their best iterate's
-        score (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
+        The climbs, by their best iterate's score
+        (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
-    ranked, focus = ranked_hypotheses(stepper, moving, search)
     two_views = stepper.two_views(moving)
     climbs = [h.climb(moving, egi_scored=not two_views) for h in ranked[: search.climbs]]
     for state in climbs:

@@ -1,0 +1,115 @@
+"""The early confirmation of the global search (o3d_spectral.confirmation) and the stage
+record of a call (o3d_spectral.stages)."""
+
+import logging
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3d_spectral
+from o3d_spectral import confirmation, so3
+from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
+from tests.conftest import sample_model
+
+VOXEL = 0.008
+
+
+def turned(cloud, angle_deg, axis, shift):
+    T = np.eye(4)
+    T[:3, :3] = so3.exp(np.deg2rad(angle_deg) * np.asarray(axis) / np.linalg.norm(axis))
+    T[:3, 3] = shift
+    out = o3d.geometry.PointCloud(cloud)
+    out.transform(T)
+    return out, T
+
+
+@pytest.fixture(scope="module")
+def drill():
+    """A power drill model (no symmetry) and a copy turned 130 degrees and moved 4 cm."""
+    source = sample_model("power_drill", 20000)
+    target, T = turned(source, 130.0, (0.2, -0.5, 0.8), (0.03, -0.02, 0.02))
+    return source, target, T
+
+
+def prepared(source, target):
+    stepper = o3d_spectral.SpectralStepper(target, VOXEL)
+    return stepper, stepper.moving(source)
+
+
+def test_fit_is_whole_at_the_truth_and_low_half_a_turn_away(drill):
+    source, target, T = drill
+    stepper, moving = prepared(source, target)
+    pose, share = confirmation.fit(stepper, moving, target, T)
+    assert share > 0.95
+    assert rotation_error(pose, T) < 1.0
+    flipped = T.copy()
+    flipped[:3, :3] = T[:3, :3] @ so3.exp(np.array([0.0, 0.0, np.pi]))
+    _, wrong = confirmation.fit(stepper, moving, target, flipped)
+    assert wrong < share - confirmation.FIT_MARGIN
+
+
+def test_a_clear_case_is_confirmed_and_skips_the_climbs(drill):
+    source, target, T = drill
+    result = o3d_spectral.registration_spectral_global(source, target, VOXEL)
+    assert result.confirmed
+    assert list(result.stage_times) == ["prepare", "candidates", "confirm", "polish"]
+    assert result.history == [] and result.converged
+    assert result.confidence >= confirmation.FIT_MARGIN
+    center = np.asarray(source.points).mean(axis=0)
+    assert rotation_error(result.transformation, T) < 1.0
+    assert translation_error(result.transformation, T, center=center) < 0.002
+
+
+def test_without_confirmation_the_climbs_run_and_agree(drill):
+    source, target, T = drill
+    search = o3d_spectral.GlobalSearchOption(confirm=False)
+    result = o3d_spectral.registration_spectral_global(source, target, VOXEL, search=search)
+    assert not result.confirmed
+    assert list(result.stage_times) == ["prepare", "candidates", "climbs", "polish"]
+    assert rotation_error(result.transformation, T) < 1.0
+
+
+def test_a_pose_with_a_distinct_rival_is_not_confirmed(drill):
+    """The same fit twice, over 10 degrees apart: no lead, no confirmation."""
+    source, target, T = drill
+    stepper, moving = prepared(source, target)
+    truth = o3d_spectral.search.Hypothesis(
+        T[:3, :3], T[:3, :3] @ moving.centroid + T[:3, 3], 0.5, 0.0)
+    assert confirmation.confirm(stepper, moving, target, [truth]).confirmed
+    rival = o3d_spectral.search.Hypothesis(  # a copy 20 degrees away, placed as well
+        so3.exp(np.array([0.0, np.deg2rad(20.0), 0.0])) @ T[:3, :3], truth.centre, 0.5, 0.0)
+    decided = confirmation.confirm(stepper, moving, target, [truth, rival, rival])
+    assert decided.fit >= confirmation.MIN_FIT
+    if decided.runner_up > decided.fit - confirmation.FIT_MARGIN:
+        assert not decided.confirmed
+
+
+def test_no_confirmation_in_a_scene():
+    instance = make_instance("cluttered", "power_drill", rng=instance_rng(0, 3))
+    stepper, moving = prepared(instance.source, instance.target)
+    assert not confirmation.applies(stepper, moving)
+
+
+def test_the_ascent_runs_between_two_views_only(drill):
+    source, target, _ = drill
+    search = o3d_spectral.GlobalSearchOption(confirm=False)
+    result = o3d_spectral.registration_spectral_global(source, target, VOXEL, search=search)
+    assert "ascent" not in result.stage_times  # a model against its copy: not two views
+
+
+def test_each_stage_logs_its_time_at_info(drill, caplog):
+    source, target, _ = drill
+    with caplog.at_level(logging.INFO, logger="o3d_spectral"):
+        result = o3d_spectral.registration_spectral(source, target, VOXEL)
+    lines = [r.getMessage() for r in caplog.records if r.name == "o3d_spectral"]
+    assert [line.split(":")[0] for line in lines] == ["prepare", "law", "polish"]
+    assert list(result.stage_times) == ["prepare", "law", "polish"]
+    assert all(seconds >= 0.0 for seconds in result.stage_times.values())
+
+
+def test_confirm_must_be_a_flag():
+    with pytest.raises(TypeError, match="confirm"):
+        o3d_spectral.GlobalSearchOption(confirm=1)
