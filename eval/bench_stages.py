@@ -1,24 +1,14 @@
-"""Benchmark: where the global spectral call spends its time, stage by stage (issue 17).
+"""Benchmark: where the global spectral call spends its time, stage by stage.
 
 Runs ``o3d_spectral.registration_spectral_global`` (defaults) and FPFH-RANSAC on the
-instances of ``eval/bench_speed.py`` (its tasks, one thread) and times each stage of the
-spectral call by wrapping the functions that run it, for the duration of this script:
-
-* prepare: ``registration._start`` (both clouds down-sampled, normals, EGIs, fixed grid);
-* SO(3) grid: ``search.egi_rotations`` (the EGI correlation over SO(3) and its peaks;
-  once, and once per focused place in a scene);
-* sweep: ``search.swept_rotations`` (two views only);
-* placements: ``search._placed`` (phase correlations of the candidates, the focused
-  searches' included), of which focus: ``search._focused_hypotheses``;
-* climbs: the law's climbs of the search (``search.climb``);
-* ascent: ``registration.best_ascent``;
-* polish + scoring: ``registration._finish`` (the ICP polish, Open3D's evaluation);
-* total: the whole call; FPFH-RANSAC: the harness's whole call.
-
-Stages nest (focus is inside placements; the final climb to convergence is in the total
-only), so they do not sum to the total. Prints the median of each over each group's
-instances as a Markdown table and writes ``stages.csv`` (one row per instance) to
-``--out``.
+instances of ``eval/bench_speed.py`` (its tasks, one thread) and reads each stage's time
+from the call's own record, ``result.stage_times`` (:mod:`o3d_spectral.stages`): prepare,
+candidates (the SO(3) correlation, the sweep between two scans, the placements and, in a
+scene, the focused searches), confirm, climbs, ascent (two scans only), polish (the ICP
+polish and Open3D's scoring). A stage a call skipped counts 0 s; the stages sum to the
+call's time. Prints the median of each over each group's instances, the share of calls
+confirmed early, as a Markdown table, and writes ``stages.csv`` (one row per instance)
+to ``--out``.
 
 Usage: python eval/bench_stages.py --suites out/suites --out out/bench_stages
        [--limit 12] [--rotations 1] [--groups full dragon_24 ...]
@@ -32,44 +22,24 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 
 import argparse
 import time
-from collections import defaultdict
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from o3d_spectral import registration, search
+import o3d_spectral
 
-#: (label, module, function) of each timed stage, in the table's order.
-STAGES = (
-    ("prepare", registration, "_start"),
-    ("SO(3) grid", search, "egi_rotations"),
-    ("sweep", search, "swept_rotations"),
-    ("placements", search, "_placed"),
-    ("of which focus", search, "_focused_hypotheses"),
-    ("climbs", search, "climb"),
-    ("ascent", registration, "best_ascent"),
-    ("polish + scoring", registration, "_finish"),
-)
-COLUMNS = [label for label, _, _ in STAGES] + ["total", "FPFH-RANSAC"]
+STAGES = ("prepare", "candidates", "confirm", "climbs", "ascent", "polish")
+COLUMNS = [*STAGES, "total", "FPFH-RANSAC"]
 
 
-def timed(clock: defaultdict[str, float], label: str, call: Callable) -> Callable:
-    """``call`` adding its run time (seconds) to ``clock[label]``; a call inside another
-    of the same label is counted once, by the outer one."""
-    depth = [0]
-
-    def wrapper(*args, **kwargs):
-        depth[0] += 1
-        start = time.perf_counter()
-        try:
-            return call(*args, **kwargs)
-        finally:
-            depth[0] -= 1
-            if depth[0] == 0:
-                clock[label] += time.perf_counter() - start
-
-    return wrapper
+def staged(task: speed.Task) -> tuple[dict[str, float], bool]:
+    """The spectral call's stage times (seconds, every stage of :data:`STAGES`) and
+    whether it was confirmed early."""
+    start = time.perf_counter()
+    result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel)
+    times = {stage: result.stage_times.get(stage, 0.0) for stage in STAGES}
+    times["total"] = time.perf_counter() - start
+    return times, result.confirmed
 
 
 def main() -> None:
@@ -83,10 +53,6 @@ def main() -> None:
     args = parser.parse_args()
     groups = [g for g in args.groups if args.suites is not None or g not in speed.CONDITIONS]
 
-    clock: defaultdict[str, float] = defaultdict(float)
-    for label, module, name in STAGES:
-        setattr(module, name, timed(clock, label, getattr(module, name)))
-
     rows, lines, warmed = [], [], False
     for group in groups:
         if group in speed.CONDITIONS:
@@ -97,26 +63,24 @@ def main() -> None:
             speed.spectral_global(tasks[0])
             speed.fpfh_ransac(tasks[0])
             warmed = True
-        times = []
+        times, confirmed = [], 0
         for task in tasks:
-            clock.clear()
-            start = time.perf_counter()
-            speed.spectral_global(task)
-            clock["total"] = time.perf_counter() - start
+            clock, early = staged(task)
             start = time.perf_counter()
             speed.fpfh_ransac(task)
             clock["FPFH-RANSAC"] = time.perf_counter() - start
+            confirmed += early
             times.append([clock[c] for c in COLUMNS])
-            rows.append({"group": group, "instance": task.name,
+            rows.append({"group": group, "instance": task.name, "confirmed": early,
                          **{c: clock[c] for c in COLUMNS}})
         if times:
             median = np.median(np.array(times), axis=0)
             cells = " | ".join(f"{m:.3f}" for m in median)
-            lines.append(f"| {group} ({len(tasks)}) | {cells} |")
+            lines.append(f"| {group} ({len(tasks)}) | {cells} | {confirmed / len(tasks):.0%} |")
             print(lines[-1], flush=True)
 
-    table = "\n".join(["| group | " + " | ".join(COLUMNS) + " |",
-                       "|" + " --- |" * (len(COLUMNS) + 1), *lines])
+    table = "\n".join(["| group | " + " | ".join(COLUMNS) + " | confirmed |",
+                       "|" + " --- |" * (len(COLUMNS) + 2), *lines])
     args.out.mkdir(parents=True, exist_ok=True)
     speed.write_csv(args.out / "stages.csv", rows)
     print(table)

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 __all__ = ["harmonic_sums", "splat_into"]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
     """Factors of the orthonormal Legendre recurrence (:func:`o3d_spectral.harmonics.legendre`):
     sectoral ``c[m]``, and ``a[l, m]``, ``b[l, m]`` of ``P_l^m = a (x P_{l-1}^m - b P_{l-2}^m)``."""
@@ -30,7 +30,7 @@ def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
     return c, a, b
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
     """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B`` (:func:`o3d_spectral.harmonics.project`).
 
@@ -77,7 +77,7 @@ def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
     return F
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
                binary: bool) -> None:
     """Add each point's weight to ``grid`` (3D, zeroed by the caller) at the voxel

@@ -240,6 +240,10 @@ class GlobalSearchOption:
         to a 180-degree turn the coarse grid ranked higher. Not for a model against a
         view (occluded suite: 3 instances lost, 0 won) or a scene (the coarse grid ranks
         clutter above the object).
+    workers : int or None
+        Threads the placements and the climbs are spread over (they are independent);
+        every core when None, as Open3D's RANSAC. The result is the same to the bit
+        whatever the count (:mod:`o3d_spectral.parallel`).
     """
 
     hypotheses: int = 32
@@ -255,6 +259,7 @@ class GlobalSearchOption:
     confirm: bool = True
     peak_ascent: bool = True
     coarse_placements: int = 32
+    workers: int | None = None
 
     def __post_init__(self) -> None:
         check_int("hypotheses", self.hypotheses, low=2)
@@ -267,6 +272,7 @@ class GlobalSearchOption:
         for name in ("egi_focus", "search_visibility", "confirm", "peak_ascent"):
             check_bool(name, getattr(self, name))
         check_int("search_samples", self.search_samples, low=3, optional=True)
+        check_int("workers", self.workers, low=1, optional=True)
 
     def check_memory(self, option: SpectralRegistrationOption) -> None:
         """``ValueError`` when the SO(3) correlation grid (complex, ``samples^3``, three

@@ -34,7 +34,7 @@ from .options import (
 )
 from .refinement import near_pose, refine
 from .result import SpectralRegistrationResult
-from .search import climbed, confidence, ranked_hypotheses
+from .search import climbed, confidence, ranked_hypotheses, sweeps
 from .stages import StageClock
 from .stepper import MovingCloud, SpectralStepper
 
@@ -283,12 +283,14 @@ def registration_spectral_global(
     1. **prepare**: both clouds down-sampled, their normals, EGIs and the fixed voxel grid;
     2. **candidates**: the correlation of the clouds' Extended Gaussian Images over the
        whole of SO(3) by SO(3) Fourier transforms, its highest peaks (and, between two
-       scans, rotations from the grids' spectra and a sweep) placed by 3D phase
-       correlation and ranked by that correlation's peak height; in a scene, searched
-       again around the best places (:func:`o3d_spectral.search.ranked_hypotheses`);
+       scans, rotations from the grids' spectra) placed by 3D phase correlation and
+       ranked by that correlation's peak height; in a scene, searched again around the
+       best places (:func:`o3d_spectral.search.ranked_hypotheses`);
     3. **confirm**: the best placed pose polished by a short ICP; where it clearly fits
        better than any distinct alternative the search stops here
        (:mod:`o3d_spectral.confirmation`, ``result.confirmed``);
+       between two scans, the rotations of a sweep of SO(3) are placed (**sweep**) and
+       the best confirmed again before any climb;
     4. **climbs**: otherwise the best few are climbed by the paper's control law and
        ranked again, the best climbed on to convergence
        (:func:`o3d_spectral.search.climbed`);
@@ -341,14 +343,16 @@ def registration_spectral_global(
     clock = StageClock()
     with clock.stage("prepare"):
         run = _start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
+    memo: dict = {}  # candidates and placements, kept for the second ranking
     with clock.stage("candidates"):
-        ranked, focus = ranked_hypotheses(run.stepper, run.moving, search)
-    confirmed = None
-    if search.confirm and confirmation.applies(run.stepper, run.moving):
-        with clock.stage("confirm"):
-            fixed = _with_normals(to_legacy(run.target), run.stepper)
-            confirmed = confirmation.confirm(run.stepper, run.moving, fixed, ranked)
-    if confirmed is not None and confirmed.confirmed:
+        ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, sweep=False,
+                                          memo=memo)
+    confirmed = _confirmation(run, search, ranked, clock)
+    if confirmed is None and sweeps(run.stepper, run.moving, search):
+        with clock.stage("sweep"):  # two views: the sweep of SO(3) joins the candidates
+            ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, memo=memo)
+        confirmed = _confirmation(run, search, ranked, clock)
+    if confirmed is not None:
         best, pose, result = _confirmed(run, confirmed)
     else:
         best, pose, result = _searched(run, search, ranked, focus, clock)
@@ -357,6 +361,19 @@ def registration_spectral_global(
                          max_correspondence_distance)
     result.stage_times = clock.times
     return result
+
+
+def _confirmation(
+    run: _Run, search: GlobalSearchOption, ranked: list, clock: StageClock
+) -> confirmation.Confirmation | None:
+    """The confirmation of the best of ``ranked`` (:mod:`o3d_spectral.confirmation`), or
+    None where it does not apply or does not confirm."""
+    if not (search.confirm and confirmation.applies(run.stepper, run.moving)):
+        return None
+    with clock.stage("confirm"):
+        fixed = _with_normals(to_legacy(run.target), run.stepper)
+        confirmed = confirmation.confirm(run.stepper, run.moving, fixed, ranked)
+    return confirmed if confirmed.confirmed else None
 
 
 def _confirmed(

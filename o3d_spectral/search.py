@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import so3
 from .law import Climb, climb
 from .options import GlobalSearchOption
+from .parallel import thread_map
 from .shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 from .so3fft import correlation_grid, peaks
 from .stepper import MovingCloud, SpectralStepper
@@ -43,7 +44,7 @@ from .target_grid import COARSE_FACTOR
 
 __all__ = [
     "Hypothesis", "hypotheses", "egi_rotations", "shell_rotations", "swept_rotations", "places",
-    "ranked_hypotheses", "climbed", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN",
+    "ranked_hypotheses", "sweeps", "climbed", "confidence", "DISTINCT_ANGLE", "FOCUS_MARGIN",
     "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS", "PLACEMENT_SPAN", "span_factor",
     "SWEEP_SENSOR_ANGLE", "placed_peaks",
 ]
@@ -117,7 +118,7 @@ def hypotheses(
     correlation (near ``around``, metres, when given), highest placed peak first."""
     rotations = egi_rotations(stepper, moving, search)
     return _placed(stepper, moving, rotations, around, search.coarse_placements,
-                   two_views=stepper.two_views(moving))
+                   two_views=stepper.two_views(moving), workers=search.workers)
 
 
 def egi_rotations(
@@ -193,26 +194,38 @@ def placed_peaks(
 def _placed(
     stepper: SpectralStepper, moving: MovingCloud, rotations: list[tuple[NDArray, float]],
     around: ArrayLike | None, coarse_placements: int = 0, *, two_views: bool = False,
+    workers: int | None = 1, memo: dict | None = None,
 ) -> list[Hypothesis]:
     """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
     near ``around`` (anywhere when None), highest placed peak first. Placed anywhere
     between ``two_views`` (:meth:`o3d_spectral.SpectralStepper.two_views`): on a grid
     where the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the
     ``coarse_placements`` (when over 0) that place best on one twice as coarse
-    (:meth:`o3d_spectral.SpectralStepper.locate`) are kept."""
+    (:meth:`o3d_spectral.SpectralStepper.locate`) are kept; ``memo`` (a dict, kept across
+    calls on the same clouds) holds those coarse scores and placements so that a rotation
+    is placed once however often it is ranked. Placed on ``workers`` threads
+    (:func:`o3d_spectral.parallel.thread_map`)."""
     factor = 1.0
+    memo = {} if memo is None or around is not None else memo
     if around is None and two_views:
         factor = span_factor(stepper, moving, PLACEMENT_SPAN)
         if 0 < coarse_placements < len(rotations):
             coarse = COARSE_FACTOR * factor
-            scores = placed_peaks(stepper, moving, [R for R, _ in rotations], coarse)
+            new = [R for R, _ in rotations if ("coarse", R.tobytes()) not in memo]
+            for R, score in zip(new, placed_peaks(stepper, moving, new, coarse), strict=True):
+                memo["coarse", R.tobytes()] = score
+            scores = np.array([memo["coarse", R.tobytes()] for R, _ in rotations])
             best = np.argsort(-scores, kind="stable")[:coarse_placements]
             rotations = [rotations[i] for i in np.sort(best)]
-    found = []
-    for R, _ in rotations:
+
+    def placed(R: NDArray[np.float64]) -> Hypothesis:
         centre, peak, cost = stepper.locate(moving, R, around=around, factor=factor)
-        found.append(Hypothesis(R, centre, peak, cost))
-    return _best_first(found)
+        return Hypothesis(R, centre, peak, cost)
+
+    new = [R for R, _ in rotations if ("placed", R.tobytes()) not in memo]
+    for R, hypothesis in zip(new, thread_map(placed, new, workers), strict=True):
+        memo["placed", R.tobytes()] = hypothesis
+    return _best_first([memo["placed", R.tobytes()] for R, _ in rotations])
 
 
 def _best_first(found: list[Hypothesis]) -> list[Hypothesis]:
@@ -249,24 +262,48 @@ def _focused_hypotheses(
 
 
 def ranked_hypotheses(
-    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption
+    stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
+    sweep: bool = True, memo: dict | None = None,
 ) -> tuple[list[Hypothesis], bool]:
     """Steps 1-3 of the search: the candidates, placed and (in a scene) focused, best
     placed first; and whether any focus applied (the climbs then match the scene's normals
-    near each hypothesis only)."""
-    rotations = egi_rotations(stepper, moving, search)
-    if search.egi_focus and stepper.grid.holds_more(moving.radius):  # they find the places
-        rotations = rotations[: search.scene_hypotheses]
+    near each hypothesis only).
+
+    Parameters
+    ----------
+    stepper, moving, search
+    sweep : bool
+        Between two views, add the sweep's rotations (:func:`swept_rotations`) to the
+        candidates (with ``search.sweep_rotations`` over 0).
+    memo : dict, optional
+        Candidates and placements kept from an earlier call on the same clouds and
+        ``search`` (:func:`_placed`): the registration ranks the candidates without the
+        sweep first and, where that confirms nothing, again with it, placing only what is
+        new.
+    """
+    memo = {} if memo is None else memo
     two_views = stepper.two_views(moving)
-    if two_views and search.shell_hypotheses:
-        rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
-    if two_views and search.sweep_rotations:
+    if "candidates" not in memo:
+        rotations = egi_rotations(stepper, moving, search)
+        if search.egi_focus and stepper.grid.holds_more(moving.radius):  # they find places
+            rotations = rotations[: search.scene_hypotheses]
+        if two_views and search.shell_hypotheses:
+            rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
+        memo["candidates"] = rotations
+    rotations = list(memo["candidates"])
+    if two_views and sweep and search.sweep_rotations:
         rotations += swept_rotations(stepper, moving, search.sweep_rotations)
     ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
-                     two_views=two_views)
+                     two_views=two_views, workers=search.workers, memo=memo)
     if not search.egi_focus:
         return ranked, False
     return _focused_hypotheses(stepper, moving, search, ranked)
+
+
+def sweeps(stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption) -> bool:
+    """Whether :func:`ranked_hypotheses` adds a sweep of SO(3) (two views, and
+    ``search.sweep_rotations`` over 0)."""
+    return stepper.two_views(moving) and search.sweep_rotations > 0
 
 
 def climbed(
@@ -275,7 +312,7 @@ def climbed(
     init: NDArray[np.float64], start: float,
 ) -> list[Climb]:
     """Step 4 of the search: the ``search.climbs`` best of ``ranked`` climbed a little by the
-    law, best first.
+    law (on ``search.workers`` threads), best first.
 
     Parameters
     ----------
@@ -299,12 +336,15 @@ def climbed(
         (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
     """
     two_views = stepper.two_views(moving)
-    climbs = [h.climb(moving, egi_scored=not two_views) for h in ranked[: search.climbs]]
-    for state in climbs:
+    def climbed_from(hypothesis: Hypothesis) -> Climb:
+        state = hypothesis.climb(moving, egi_scored=not two_views)
         if focus:  # the scene's normals near this hypothesis' own points, kept for its climb
             near, _, _ = stepper.visible(moving, state.R, state.T)
             state.stepper = stepper.focused(near, FOCUS_MARGIN * stepper.voxel_size)
         climb(stepper, moving, state, iterations, tolerance, init, start)
+        return state
+
+    climbs = thread_map(climbed_from, ranked[: search.climbs], search.workers)
     return sorted(climbs, key=lambda state: -state.best_iterate()[0])
 
 

@@ -26,8 +26,10 @@ from o3d_spectral.harness.real import GROUPS, load_cases, randomly_rotated
 
 _reg = o3d.pipelines.registration
 CASES = load_cases()
-COUNTS = {"dragon_24": 7, "dragon_48": 6, "dragon_72": 5, "ycbv_crop": 3, "ycbv_frame": 3}
-DRAGON_OVERLAP = {"dragon_24": 0.6, "dragon_48": 0.3, "dragon_72": 0.18}
+COUNTS = {"dragon_24": 7, "dragon_48": 6, "dragon_72": 5, "dragon_96": 4, "dragon_120": 3,
+          "ycbv_crop": 3, "ycbv_frame": 3}
+DRAGON_OVERLAP = {"dragon_24": 0.6, "dragon_48": 0.3, "dragon_72": 0.18, "dragon_96": 0.1,
+                  "dragon_120": 0.05}
 
 
 def _fitness(source, target, T, distance: float) -> float:
@@ -60,7 +62,7 @@ def test_every_group_has_its_cases():
         f"ycbv_crop_{name}" for name in real.YCBV_CLASSES
     ]
     with pytest.raises(ValueError, match="unknown groups"):
-        load_cases(["dragon_96"])
+        load_cases(["dragon_144"])
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)

@@ -3,8 +3,9 @@
 Two sets, each with a verified ground truth:
 
 * the Stanford dragon (Cyberware laser scans on a turntable, 24 degrees apart): scan to
-  scan, in groups ``"dragon_24"``, ``"dragon_48"``, ``"dragon_72"`` (every pair of scans
-  that far apart, source the earlier scan);
+  scan, in groups ``"dragon_24"`` to ``"dragon_120"`` (every pair of scans that far
+  apart, source the earlier scan; 96 and 120 degrees apart most pairs share 5-18% of
+  their surface);
 * one YCB-Video RGB-D frame (Asus Xtion): the YCB-Video model points of three objects
   against the object's crop by the label mask (``"ycbv_crop"``) or against the whole
   frame (``"ycbv_frame"``, down-sampled to 2 mm), both in the camera frame.
@@ -59,7 +60,8 @@ DRAGON_ANGLES: tuple[int, ...] = tuple(range(0, 169, 24))
 #: The YCB-Video classes in the bundled frame.
 YCBV_CLASSES: tuple[str, ...] = ("009_gelatin_box", "025_mug", "061_foam_brick")
 #: The groups of cases, in order.
-GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "ycbv_crop", "ycbv_frame")
+GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "dragon_96", "dragon_120",
+                           "ycbv_crop", "ycbv_frame")
 #: How :func:`with_normals` gives a case's clouds normals: as a sensor's software would
 #: ("oriented"), as Open3D's ``estimate_normals()`` alone leaves them ("unoriented"), or
 #: none (the method estimates its own).
@@ -67,6 +69,7 @@ NORMAL_MODES: tuple[str, ...] = ("oriented", "unoriented", "none")
 #: Voxel size (metres) each group is registered at: the dragon is 0.2 m across, the
 #: YCB-Video objects are the suites' objects (8 mm, as the suites).
 VOXEL_SIZES: dict[str, float] = {"dragon_24": 0.005, "dragon_48": 0.005, "dragon_72": 0.005,
+                                 "dragon_96": 0.005, "dragon_120": 0.005,
                                  "ycbv_crop": 0.008, "ycbv_frame": 0.008}
 #: Success: symmetry-aware rotation error under 5 degrees and translation error (at the
 #: source's centroid) under 1 cm (:func:`case_errors`).
@@ -183,7 +186,7 @@ def _ycbv_cases(group: str) -> list[RealCase]:
 
 def load_cases(groups: tuple[str, ...] | list[str] | None = None) -> list[RealCase]:
     """The real registration cases of ``groups`` (all of :data:`GROUPS` when None), in the
-    order of :data:`GROUPS`: 7, 6 and 5 dragon pairs, 3 crops, 3 whole-frame cases.
+    order of :data:`GROUPS`: 7, 6, 5, 4 and 3 dragon pairs, 3 crops, 3 whole-frame cases.
 
     Raises
     ------

@@ -1,0 +1,50 @@
+"""Independent work of one call spread over threads.
+
+The global search's placements and climbs are independent of each other, and their time
+is in FFTs and compiled loops that release the GIL, so threads share them out. Each item
+is computed whole by one thread and the results come back in the items' order: a call
+gives the same result, to the bit, whatever its number of workers.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
+
+__all__ = ["resolved_workers", "thread_map"]
+
+Item = TypeVar("Item")
+Out = TypeVar("Out")
+
+_pools: dict[int, ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
+
+
+def resolved_workers(workers: int | None) -> int:
+    """``workers``, or every core this process may run on when None."""
+    if workers is not None:
+        return workers
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def thread_map(
+    function: Callable[[Item], Out], items: Iterable[Item], workers: int | None
+) -> list[Out]:
+    """``[function(item) for item in items]`` on up to ``workers`` threads (all cores
+    when None), in the items' order. One worker, or a call from inside a worker, runs in
+    the calling thread."""
+    items = list(items)
+    count = min(resolved_workers(workers), len(items))
+    if count <= 1 or threading.current_thread().name.startswith("o3d_spectral"):
+        return [function(item) for item in items]
+    with _pools_lock:
+        pool = _pools.get(count)
+        if pool is None:
+            pool = _pools[count] = ThreadPoolExecutor(count, thread_name_prefix="o3d_spectral")
+    return list(pool.map(function, items))

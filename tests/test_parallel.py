@@ -1,0 +1,38 @@
+"""Threads share out the global search's placements and climbs without changing a bit of
+the result (o3d_spectral.parallel)."""
+
+import numpy as np
+import pytest
+
+import o3d_spectral
+from o3d_spectral.parallel import resolved_workers, thread_map
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
+
+
+def test_thread_map_keeps_the_items_order():
+    items = list(range(50))
+    assert thread_map(lambda x: x * x, items, 4) == [x * x for x in items]
+    assert thread_map(lambda x: x, [], None) == []
+    assert resolved_workers(None) >= 1 and resolved_workers(3) == 3
+
+
+def test_workers_must_be_a_positive_count():
+    with pytest.raises(ValueError, match="workers"):
+        o3d_spectral.GlobalSearchOption(workers=0)
+
+
+@pytest.mark.parametrize("condition", ["cluttered", "partial"])
+def test_the_result_is_the_same_to_the_bit_whatever_the_workers(condition):
+    """A scene (focused searches, climbs on focused EGIs) and a view whose climbs run
+    (no confirmation): one thread against four."""
+    instance = make_instance(condition, "power_drill", rng=instance_rng(7, 3))
+    results = [
+        o3d_spectral.registration_spectral_global(
+            instance.source, instance.target, 0.008,
+            search=o3d_spectral.GlobalSearchOption(workers=workers, confirm=False))
+        for workers in (1, 4)
+    ]
+    np.testing.assert_array_equal(results[0].transformation, results[1].transformation)
+    assert [s for _, s in results[0].hypotheses] == [s for _, s in results[1].hypotheses]
+    assert results[0].fitness == results[1].fitness
