@@ -19,8 +19,11 @@ Groups and voxel sizes:
   ``o3d-spectral make-suite COND --n 48 --seed 0 --out DIR/COND``): the first 48 instances
   of each, 8 mm; success symmetry-aware, 5 deg and 1 cm at the source centroid
   (``harness.metrics.instance_metrics``).
-* real cases (``o3d_spectral.harness.real``; ``dragon_24``, ``dragon_48``, ``dragon_72``:
-  5 mm, the dragon is 0.2 m across; ``ycbv_crop``, ``ycbv_frame``: 8 mm, as the suites' YCB
+* ``wide``: one view of each of the 12 bundled models (cut out by its label) against a
+  reconstructed tabletop 2 m wide holding 8 objects per square metre
+  (``o3d_spectral.synthetic.wide``), 8 mm; success as the suites'.
+* real cases (``o3d_spectral.harness.real``; ``dragon_24`` to ``dragon_120``: 5 mm, the
+  dragon is 0.2 m across; ``ycbv_crop``, ``ycbv_frame``: 8 mm, as the suites' YCB
   objects): every case from ``--rotations`` seeded random rotations of its source (uniform
   over SO(3) about its centroid); success: symmetry-aware rotation error < 5 deg and
   translation error at the source centroid < 1 cm (``real.case_errors``).
@@ -63,7 +66,9 @@ from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.methods import get_method  # noqa: E402
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
+from o3d_spectral.synthetic.models import model_names  # noqa: E402
 from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
+from o3d_spectral.synthetic.wide import wide_scene_instance  # noqa: E402
 
 if ONE_THREAD:
     o3d.utility.set_max_threads(1)  # Open3D's TBB pool has no environment variable
@@ -72,6 +77,8 @@ CONDITIONS = ("full", "partial", "occluded", "cluttered")
 SUITE_VOXEL = 0.008
 METHODS = ("spectral_global", "fpfh_ransac")
 SUITE_SIZE = 48
+#: Width (metres) of the tabletop of the ``wide`` group.
+WIDE_WIDTH = 2.0
 
 
 @dataclass
@@ -98,6 +105,7 @@ def fpfh_ransac(task: Task) -> tuple[np.ndarray, dict]:
 
 
 CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}
+ALL_GROUPS = (*CONDITIONS, "wide", *real.GROUPS)
 
 
 def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
@@ -112,6 +120,20 @@ def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
         seed = task_seed(0, condition, int(suite.manifest["seed"]), index, "fpfh_ransac")
         yield Task(condition, f"{condition}_{index:03d}", instance.source, instance.target,
                    SUITE_VOXEL, seed, score)
+
+
+def wide_tasks(limit: int) -> Iterator[Task]:
+    """One view of each bundled model against a reconstructed tabletop :data:`WIDE_WIDTH`
+    metres wide (:func:`o3d_spectral.synthetic.wide.wide_scene_instance`, seed 100 + i)."""
+    for index, name in enumerate(model_names()[:limit]):
+        instance = wide_scene_instance(name, WIDE_WIDTH, np.random.default_rng(100 + index))
+
+        def score(T, instance=instance):
+            m = instance_metrics(T, instance)
+            return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
+
+        yield Task("wide", f"wide_{name}", instance.source, instance.target, SUITE_VOXEL,
+                   index, score)
 
 
 def real_tasks(group: str, rotations: int, limit: int) -> Iterator[Task]:
@@ -197,14 +219,13 @@ def main() -> None:
     parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
     parser.add_argument("--out", type=Path, default=Path("out/bench_speed"))
     parser.add_argument("--rotations", type=int, default=5, help="random rotations per real case")
-    parser.add_argument("--groups", nargs="+", choices=CONDITIONS + real.GROUPS,
-                        default=list(CONDITIONS + real.GROUPS))
+    parser.add_argument("--groups", nargs="+", choices=ALL_GROUPS, default=list(ALL_GROUPS))
     parser.add_argument("--limit", type=int, default=10**9,
                         help="at most this many instances per group (a quick run)")
     parser.add_argument("--all-cores", action="store_true",
                         help="both methods at their defaults on every core (default: one thread)")
     args = parser.parse_args()
-    groups = [g for g in CONDITIONS + real.GROUPS if g in args.groups]
+    groups = [g for g in ALL_GROUPS if g in args.groups]
     if args.suites is None:
         groups = [g for g in groups if g not in CONDITIONS]
 
@@ -212,6 +233,8 @@ def main() -> None:
     for group in groups:
         if group in CONDITIONS:
             tasks += suite_tasks(args.suites, group, args.limit)
+        elif group == "wide":
+            tasks += wide_tasks(args.limit)
         else:
             tasks += real_tasks(group, args.rotations, args.limit)
     if not tasks:

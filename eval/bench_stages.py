@@ -48,8 +48,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("out/bench_stages"))
     parser.add_argument("--limit", type=int, default=12, help="instances per group at most")
     parser.add_argument("--rotations", type=int, default=1, help="random rotations per real case")
-    parser.add_argument("--groups", nargs="+", choices=speed.CONDITIONS + speed.real.GROUPS,
-                        default=list(speed.CONDITIONS + speed.real.GROUPS))
+    parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
+                        default=list(speed.ALL_GROUPS))
     args = parser.parse_args()
     groups = [g for g in args.groups if args.suites is not None or g not in speed.CONDITIONS]
 
@@ -57,6 +57,8 @@ def main() -> None:
     for group in groups:
         if group in speed.CONDITIONS:
             tasks = list(speed.suite_tasks(args.suites, group, args.limit))
+        elif group == "wide":
+            tasks = list(speed.wide_tasks(args.limit))
         else:
             tasks = list(speed.real_tasks(group, args.rotations, args.limit))
         if not warmed and tasks:  # untimed: FFT plans, caches, compiled kernels

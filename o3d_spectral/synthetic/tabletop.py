@@ -39,20 +39,22 @@ def _resting_pose(name: str, rng: np.random.Generator) -> np.ndarray:
 
 
 def _place_on_table(
-    names: list[str], rng: np.random.Generator
+    names: list[str], rng: np.random.Generator, size: tuple[float, float] = _TABLE_SIZE,
+    *, cluster: bool = True,
 ) -> tuple[list[str], list[np.ndarray]]:
     """World-from-model poses of objects resting on the table top (z = 0) without overlap.
 
     Each object's footprint is the set of 5 mm grid cells holding its vertices' ground
     projections (the meshes are dense enough for this to cover the silhouette); a new object
     may not touch an occupied cell or its 8 neighbours, so objects never interpenetrate.
-    The first object goes anywhere in the table's central half; the others are tried near
-    it first (within 15 cm, for clutter), then anywhere; objects that still do not fit are
-    left out (the first one always fits).
+    The first object goes anywhere in the table's central half; with ``cluster`` the others
+    are tried near it first (within 15 cm, for clutter), then anywhere; objects that still
+    do not fit are left out (the first one always fits). ``size``: the table's (x, y)
+    extent, metres.
     """
-    shape = np.ceil(np.array(_TABLE_SIZE) / _CELL).astype(int)
+    shape = np.ceil(np.array(size) / _CELL).astype(int)
     occupied = np.zeros(shape, dtype=bool)
-    half = np.array(_TABLE_SIZE) / 2
+    half = np.array(size) / 2
     placed_names, poses, first_xy = [], [], np.zeros(2)
     for name in names:
         vertices = np.asarray(model_mesh(name).vertices)
@@ -62,7 +64,7 @@ def _place_on_table(
             center_xy = 0.5 * (rotated[:, :2].min(axis=0) + rotated[:, :2].max(axis=0))
             if not poses:
                 xy = rng.uniform(-half / 2, half / 2)
-            elif attempt < MAX_TRIES // 2:
+            elif cluster and attempt < MAX_TRIES // 2:
                 xy = first_xy + rng.uniform(-_CLUSTER, _CLUSTER, size=2)
             else:
                 xy = rng.uniform(-half, half)
@@ -81,25 +83,31 @@ def _place_on_table(
     return placed_names, poses
 
 
-def table_mesh() -> o3d.geometry.TriangleMesh:
-    """The support table: a 3 cm slab whose top face is the plane z = 0, centred on the
-    origin (world frame, metres)."""
-    table = o3d.geometry.TriangleMesh.create_box(*_TABLE_SIZE, 0.03)
-    table.translate([-_TABLE_SIZE[0] / 2, -_TABLE_SIZE[1] / 2, -0.03])
+def table_mesh(size: tuple[float, float] = _TABLE_SIZE) -> o3d.geometry.TriangleMesh:
+    """The support table: a 3 cm slab of ``size`` (x, y; metres) whose top face is the
+    plane z = 0, centred on the origin (world frame, metres)."""
+    table = o3d.geometry.TriangleMesh.create_box(*size, 0.03)
+    table.translate([-size[0] / 2, -size[1] / 2, -0.03])
     table.compute_triangle_normals()
     return table
 
 
 def tabletop(
-    names: list[str], rng: np.random.Generator
+    names: list[str], rng: np.random.Generator, size: tuple[float, float] = _TABLE_SIZE,
+    *, cluster: bool = True,
 ) -> tuple[list[str], list[np.ndarray], list[o3d.geometry.TriangleMesh]]:
     """Bundled models resting on :func:`table_mesh` without interpenetration.
 
     Parameters
     ----------
     names : list of str
-        Models to place, the first near the table's centre, the others around it.
+        Models to place, the first near the table's centre, the others around it
+        (``cluster``) or anywhere on it.
     rng : numpy.random.Generator
+    size : (float, float)
+        The table's extent (x, y), metres.
+    cluster : bool
+        Try the other objects within 15 cm of the first before anywhere else.
 
     Returns
     -------
@@ -110,5 +118,5 @@ def tabletop(
     meshes : list of open3d.geometry.TriangleMesh
         The models moved to those poses (world frame, metres).
     """
-    placed, poses = _place_on_table(names, rng)
+    placed, poses = _place_on_table(names, rng, size, cluster=cluster)
     return placed, poses, [moved(model_mesh(n), p) for n, p in zip(placed, poses, strict=True)]
