@@ -8,12 +8,13 @@ The public API is flat, one call per algorithm, shaped like Open3D's::
     # from an initial guess: the paper's control law (like registration_icp)
     result = o3d_spectral.registration_spectral(source, target, 0.008, init)
 
-Settings: :class:`SpectralRegistrationOption` (representation and law),
-:class:`GlobalSearchOption`, :class:`RefinementOption`, :class:`CloudOption`,
-:class:`SpectralConvergenceCriteria`. Repeated calls against one fixed cloud (visual
-servoing): :class:`SpectralStepper`. See ``docs/architecture.md`` for the modules and
-``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic and bandwidth
-conventions.
+One model against many targets: :func:`prepare` it once and pass the
+:class:`PreparedSource` as the source. Settings: :class:`SpectralRegistrationOption`
+(representation and law), :class:`GlobalSearchOption`, :class:`RefinementOption`,
+:class:`CloudOption`, :class:`SpectralConvergenceCriteria`. Repeated calls against one
+fixed cloud (visual servoing): :class:`SpectralStepper`. See ``docs/architecture.md``
+for the modules and ``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic
+and bandwidth conventions.
 """
 
 import logging as _logging
@@ -31,6 +32,7 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
         SpectralConvergenceCriteria,
         SpectralRegistrationOption,
     )
+    from .prepared import PreparedSource, prepare
     from .registration import registration_spectral, registration_spectral_global
     from .result import SpectralRegistrationResult
     from .stepper import Evaluation, MovingCloud, SpectralStepper
@@ -38,6 +40,8 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
 __all__ = [
     "registration_spectral",
     "registration_spectral_global",
+    "prepare",
+    "PreparedSource",
     "SpectralRegistrationOption",
     "GlobalSearchOption",
     "RefinementOption",
@@ -57,6 +61,8 @@ __getattr__ = lazy_attributes(
     {
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
+        "prepare": "prepared",
+        "PreparedSource": "prepared",
         "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",
         "GlobalSearchOption": "options",

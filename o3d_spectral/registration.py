@@ -32,6 +32,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
+from .prepared import PreparedSource
 from .refinement import near_pose, refine
 from .result import SpectralRegistrationResult
 from .search import climbed, confidence, ranked_hypotheses, sweeps
@@ -88,14 +89,20 @@ def _start(
     """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
     start = time.perf_counter()
     init = check_transformation(init)
+    ready = source if isinstance(source, PreparedSource) else None
+    if ready is not None:
+        ready.check(voxel_size, option, cloud)
+        source = ready.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     c, origin = centring.offset(target), None
+    prepared = None if ready is None else ready.cloud
     if c is not None:  # far from the origin: register in a frame centred on the target
         source, target = centring.centred_arrays(source, c), centring.centred_arrays(target, c)
         cloud = centring.centred_option(cloud or CloudOption(), c)
         init, origin = centring.shifted(init, c), -c
+        prepared = None if ready is None else ready.moved(c)
     stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
-    moving = stepper.moving(source, "source", transformation=init)
+    moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
     criteria = criteria or SpectralConvergenceCriteria()
     return _Run(source, target, stepper, moving, init, criteria, start, c)
 
@@ -175,14 +182,16 @@ def _with_normals(
 _COMMON_PARAMETERS = """source, target : PointCloud, tensor PointCloud or ndarray
         Clouds in metres (``open3d.geometry.PointCloud``, ``open3d.t.geometry.PointCloud``);
         numpy arrays of shape (N, 3), or (N, 6) with normals in the last three columns.
-        Neither is modified. Normals are used when present (oriented again, with a
-        warning, when neighbours' point to opposite sides: an estimate with no
-        orientation step); otherwise estimated (PCA, radius ``cloud.normal_radius``).
-        Signs are chosen towards ``cloud.camera_location``, or towards the origin for a
-        depth map seen from it (a scan in its sensor's frame), or outward along the
-        surface (a model, or a view in another frame). A cloud whose normals lie in one
-        hemisphere is a single view (``result.source_reading.view``): a model is matched
-        against a view as its sensor would see it; two views are matched whole.
+        Neither is modified. ``source`` may also be a :class:`PreparedSource`
+        (:func:`o3d_spectral.prepare`), to register one model to many targets. Normals are
+        used when present (oriented again, with a warning, when neighbours' point to
+        opposite sides: an estimate with no orientation step); otherwise estimated (PCA,
+        radius ``cloud.normal_radius``). Signs are chosen towards ``cloud.camera_location``,
+        or towards the origin for a depth map seen from it (a scan in its sensor's frame),
+        or outward along the surface (a model, or a view in another frame). A cloud whose
+        normals lie in one hemisphere is a single view (``result.source_reading.view``): a
+        model is matched against a view as its sensor would see it; two views are matched
+        whole.
     voxel_size : float
         Voxel edge, metres (the paper uses 0.008). Both clouds are down-sampled to it."""
 

@@ -37,7 +37,7 @@ from .rotation import curvature_scale, gradient, rotation_step
 from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
 from .target_grid import TargetGrid
 
-__all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
+__all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE", "prepared_cloud"]
 
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
@@ -82,6 +82,26 @@ class MovingCloud:
     def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
         """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
         return (self.points - self.centroid) @ rotation.T + self.centroid + translation
+
+
+def prepared_cloud(
+    cloud: object, voxel_size: float, *, egi_voxel_size: float | None,
+    normal_radius: float | None, camera_location: ArrayLike | None, origin: ArrayLike,
+    name: str,
+) -> PreparedCloud:
+    """``cloud`` checked (it must span 4 voxels) and prepared
+    (:func:`o3d_spectral.cloud.prepare`, whose arguments these are)."""
+    arrays = as_arrays(cloud, name)
+    extent = float(np.max(np.ptp(arrays.points, axis=0)))
+    if extent < 4 * voxel_size:
+        raise ValueError(
+            f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "
+            "smaller voxel_size (check the clouds are in metres)"
+        )
+    return prepare(
+        arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
+        camera_location=camera_location, origin=origin, name=name,
+    )
 
 
 class SpectralStepper:
@@ -139,15 +159,8 @@ class SpectralStepper:
 
     def _prepare(self, cloud: object, name: str, camera: ArrayLike | None = None
                  ) -> PreparedCloud:
-        arrays = as_arrays(cloud, name)
-        extent = float(np.max(np.ptp(arrays.points, axis=0)))
-        if extent < 4 * self.voxel_size:
-            raise ValueError(
-                f"{name} spans {extent:.4g} m, under 4 voxels of {self.voxel_size} m: use a "
-                "smaller voxel_size (check the clouds are in metres)"
-            )
-        return prepare(
-            arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
+        return prepared_cloud(
+            cloud, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
             normal_radius=self.cloud.normal_radius,
             camera_location=self.cloud.camera_location if camera is None else camera,
             origin=self.frame_origin, name=name,
@@ -185,7 +198,8 @@ class SpectralStepper:
         return [self._smooth(raw, level) for level in range(self.levels)]  # every level
 
     def moving(
-        self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None
+        self, cloud: object, name: str = "source", *, transformation: ArrayLike | None = None,
+        prepared: PreparedCloud | None = None,
     ) -> MovingCloud:
         """Prepare a moving cloud: down-sample, normals, EGI coefficients.
 
@@ -198,8 +212,12 @@ class SpectralStepper:
         transformation : array_like, shape (4, 4), optional
             Rigid transform applied after preparation (normals are estimated in the
             cloud's own frame first).
+        prepared : PreparedCloud, optional
+            ``cloud`` already down-sampled with its normals (:func:`prepared_cloud`, as
+            :func:`o3d_spectral.prepare` keeps it): not prepared again.
         """
-        prepared = self._prepare(cloud, name, self.cloud.source_camera_location)
+        if prepared is None:
+            prepared = self._prepare(cloud, name, self.cloud.source_camera_location)
         points, point_normals, normals = prepared.points, prepared.point_normals, prepared.normals
         if transformation is not None:
             M = np.asarray(transformation, dtype=np.float64)

@@ -1,0 +1,131 @@
+"""A source prepared once and registered to many targets.
+
+Registering one model to many scans (pose estimation over a sequence, a robot that looks
+for the same part in every capture) repeats the source's preparation on every call: its
+down-sampling, its normals (estimated, and their signs chosen, when it has none) and the
+cells its EGI is made from. :func:`prepare` does it once; both registration calls accept
+the :class:`PreparedSource` in place of the source and give the same result, to the bit,
+as with the cloud itself::
+
+    model = o3d_spectral.prepare(model_cloud, voxel_size=0.008)
+    for scan in scans:
+        result = o3d_spectral.registration_spectral_global(model, scan, 0.008)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._checks import check_instance, check_number
+from .cloud import CloudArrays, PreparedCloud, as_arrays
+from .options import CloudOption, SpectralRegistrationOption
+from .stepper import prepared_cloud
+
+__all__ = ["PreparedSource", "prepare"]
+
+
+@dataclass(frozen=True)
+class PreparedSource:
+    """A source cloud with what the registration derives from it alone.
+
+    Build it with :func:`prepare`. Attributes are read-only.
+
+    Attributes
+    ----------
+    arrays : CloudArrays
+        The source's points and normals as given, metres (a copy).
+    voxel_size : float
+        The voxel size it was prepared for, metres.
+    egi_voxel_size, normal_radius : float or None
+        The settings its preparation used (:class:`SpectralRegistrationOption`,
+        :class:`CloudOption`).
+    camera_location : tuple of 3 float or None
+        The source's sensor position its normals were oriented towards, metres.
+    cloud : PreparedCloud
+        The down-sampled points, their normals and the EGI's normals, in the source's
+        own frame.
+    """
+
+    arrays: CloudArrays
+    voxel_size: float
+    egi_voxel_size: float | None
+    normal_radius: float | None
+    camera_location: tuple[float, float, float] | None
+    cloud: PreparedCloud
+
+    def check(
+        self, voxel_size: float, option: SpectralRegistrationOption | None,
+        cloud: CloudOption | None,
+    ) -> None:
+        """``ValueError`` naming ``source`` when a call's settings differ from those it
+        was prepared with."""
+        option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
+        asked = {"voxel_size": float(voxel_size), "egi_voxel_size": option.egi_voxel_size,
+                 "normal_radius": cloud.normal_radius,
+                 "camera_location": _source_camera(cloud)}
+        for name, value in asked.items():
+            if getattr(self, name) != value:
+                raise ValueError(
+                    f"source was prepared with {name}={getattr(self, name)!r}, the call asks "
+                    f"for {value!r}: prepare it with the call's settings")
+
+    def moved(self, offset: NDArray[np.float64]) -> PreparedCloud:
+        """The prepared cloud with its points moved by ``-offset`` (metres; the frame a
+        registration centres far-away clouds in, :mod:`o3d_spectral.centring`)."""
+        return dataclasses.replace(self.cloud, points=self.cloud.points - offset,
+                                   normal_points=self.cloud.normal_points - offset)
+
+
+def _source_camera(cloud: CloudOption) -> tuple[float, float, float] | None:
+    """Where the source's sensor was (:class:`CloudOption`): its own, or the target's."""
+    if cloud.source_camera_location is not None:
+        return cloud.source_camera_location
+    return cloud.camera_location
+
+
+def prepare(
+    source: object, voxel_size: float, option: SpectralRegistrationOption | None = None, *,
+    cloud: CloudOption | None = None,
+) -> PreparedSource:
+    """Prepare ``source`` once for many registrations at ``voxel_size``.
+
+    Parameters
+    ----------
+    source : PointCloud, tensor PointCloud or ndarray
+        As for :func:`o3d_spectral.registration_spectral_global`; not modified.
+    voxel_size : float
+        Voxel edge, metres: the calls must use the same.
+    option : SpectralRegistrationOption, optional
+        Its ``egi_voxel_size`` is used; the calls must use the same.
+    cloud : CloudOption, optional
+        Its ``normal_radius`` and the source's sensor position are used; the calls must
+        use the same.
+
+    Returns
+    -------
+    PreparedSource
+        Accepted as ``source`` by :func:`o3d_spectral.registration_spectral` and
+        :func:`o3d_spectral.registration_spectral_global`.
+
+    Raises
+    ------
+    ValueError, TypeError
+        As the registration calls, for the source, the voxel size and the settings.
+    """
+    check_number("voxel_size", voxel_size, low=0.0, low_open=True)
+    check_instance("option", option, SpectralRegistrationOption)
+    check_instance("cloud", cloud, CloudOption)
+    option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
+    arrays = as_arrays(source, "source")
+    camera = _source_camera(cloud)
+    prepared = prepared_cloud(
+        arrays, float(voxel_size), egi_voxel_size=option.egi_voxel_size,
+        normal_radius=cloud.normal_radius, camera_location=camera, origin=np.zeros(3),
+        name="source",
+    )
+    return PreparedSource(arrays, float(voxel_size), option.egi_voxel_size,
+                          cloud.normal_radius, camera, prepared)
