@@ -1,5 +1,5 @@
-"""Without an optional extra, every command that needs it stops before it starts with one
-line naming it (exit code 1).
+"""Without an optional extra, the core install still runs the demo, and every command that
+needs the extra stops before it starts with one line naming it (exit code 1).
 
 A missing module is simulated by ``sys.modules[name] = None``: its import then raises
 ``ModuleNotFoundError`` and ``importlib.util.find_spec`` finds nothing, as when it is not
@@ -8,6 +8,7 @@ installed.
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -105,3 +106,16 @@ def test_an_unchecked_import_of_an_extra_is_one_line_too(monkeypatch, capsys):
         "(pandas is missing): pip install 'o3d-spectral[harness]'"
     )
 
+
+def test_demo_without_matplotlib_prints_the_numbers_and_a_hint(monkeypatch, capsys, tmp_path):
+    hide(monkeypatch, "matplotlib")
+    assert main(["demo", "--object", "cracker_box", "--seed", "1", "--out", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    assert "rotation error" in out and f"wrote {tmp_path / 'result.json'}" in out
+    assert err.splitlines() == [
+        "o3d-spectral: WARNING: no convergence plot: plotting needs the 'harness' extra "
+        "(matplotlib is missing): pip install 'o3d-spectral[harness]'"
+    ]
+    assert not (tmp_path / "convergence.png").exists()
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["convergence_plot"] is None and result["rotation_error_deg"] < 5.0
