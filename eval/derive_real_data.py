@@ -1,7 +1,8 @@
-"""Derive the bundled real data (``datasets/real/``) from the original files.
+"""Derive the bundled real data (``o3d_spectral/datasets/real/``) from the original
+files.
 
-Not run at run time: the package reads only ``datasets/real/``. Re-run this to rebuild it
-from a copy of the originals (Stanford dragon scans, one YCB-Video frame), laid out as::
+Not run at run time: the package reads only ``o3d_spectral/datasets/real/``. Re-run this to
+rebuild it from a copy of the originals (Stanford dragon scans, one YCB-Video frame), laid out as::
 
     SOURCE/dragon/dragonStandRight_{0,24,...,168}.ply, dragonStandRight.conf, README.stanford
     SOURCE/ycbv/LICENSE, ycbv/models/<class>/points.xyz
@@ -12,7 +13,7 @@ YCB-Video scene is down-sampled with Open3D's ``voxel_down_sample(0.002)`` (the 
 the points in each 2 mm voxel); the model clouds (``points.xyz``, text) become PLY. The
 dragon scans and object crops keep every point. Text files are copied unchanged.
 
-Usage: python eval/derive_real_data.py SOURCE [--out datasets/real]
+Usage: python eval/derive_real_data.py SOURCE [--out o3d_spectral/datasets/real]
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def read_points(path: Path) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source", type=Path)
-    parser.add_argument("--out", type=Path, default=Path("datasets/real"))
+    parser.add_argument("--out", type=Path, default=Path("o3d_spectral/datasets/real"))
     args = parser.parse_args()
     src, out = args.source, args.out
 

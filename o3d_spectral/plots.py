@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from . import _extras
 from .harness.errors import rotation_error, translation_error
 from .law import IterationRecord
 
@@ -16,16 +17,8 @@ __all__ = ["pyplot", "convergence_errors", "plot_convergence"]
 
 def pyplot():
     """``matplotlib.pyplot`` on the non-interactive Agg backend, with an install hint."""
-    try:
-        import matplotlib
-    except ImportError as error:  # pragma: no cover
-        raise ImportError(
-            "plots need matplotlib: pip install 'o3d-spectral[harness]'"
-        ) from error
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    _extras.require("matplotlib", "plotting").use("Agg")
+    return _extras.require("matplotlib.pyplot", "plotting")
 
 
 def convergence_errors(

@@ -119,3 +119,4 @@ def test_demo_writes_plot_and_result(tmp_path, capsys):
     result = json.loads((tmp_path / "result.json").read_text())
     assert result["config"]["object"] == "cracker_box"
     assert result["rotation_error_deg"] < 5.0
+    assert result["convergence_plot"] == str(tmp_path / "convergence.png")

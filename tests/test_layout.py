@@ -38,8 +38,11 @@ def test_modules_and_functions_are_short(path):
 
 
 def test_only_the_package_is_importable_from_the_top_level():
-    """``eval`` and ``datasets`` are folders of scripts and data, never modules that
-    would shadow well-known names in a user's environment."""
+    """``eval`` is a folder of scripts, never a module that would shadow a well-known name
+    in a user's environment; the bundled data is package data inside the package, not a
+    top-level folder."""
     root = PACKAGE.parent
     assert not (root / "eval" / "__init__.py").exists()
-    assert not (root / "datasets" / "__init__.py").exists()
+    assert not (root / "datasets").exists()
+    assert (PACKAGE / "datasets" / "objects").is_dir()
+    assert not list((PACKAGE / "datasets").rglob("*.py"))

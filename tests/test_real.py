@@ -1,4 +1,4 @@
-"""The bundled real data (``datasets/real``) loads, and its ground truth aligns it.
+"""The bundled real data (``o3d_spectral/datasets/real``) loads, and its ground truth aligns it.
 
 Bounds measured on the bundled files (2 mm: the scanner's noise and the scans' 0.5 mm
 spacing leave matching points well inside it):

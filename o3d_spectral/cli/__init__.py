@@ -7,7 +7,9 @@ exit code). Heavy imports stay inside the commands so ``--help`` is instant.
 Errors are handled once, in :func:`main`: a command raises and ``main`` prints one line
 ``o3d-spectral COMMAND: error: ...`` (the traceback too with ``-vv``) and returns the exit
 code: 0 success, 1 a failed run (any exception while running), 2 a usage error (argparse's
-own, or :class:`UsageError` from a command's checks of its options).
+own, or :class:`UsageError` from a command's checks of its options). A command that needs
+an optional extra checks for it first (:func:`o3d_spectral._extras.require_modules`); a
+missing module of an extra is reported on one line naming the extra, exit code 1.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ import time
 import traceback
 from collections.abc import Iterator
 from importlib import metadata
+
+from o3d_spectral._extras import MissingExtraError, missing_extra
 
 COMMANDS = ("register", "demo", "suite", "eval", "report", "servo")
 LOG_FORMAT = "o3d-spectral: %(levelname)s: %(message)s"
@@ -131,11 +135,15 @@ def _package_logging(level: int) -> Iterator[None]:
         package.propagate = saved[1]
 
 
+#: What commands raise for bad input or a missing extra: shown by message alone.
+_EXPECTED = (ValueError, OSError, MissingExtraError)
+
+
 def _one_line(error: BaseException) -> str:
     """The error's message on one line; an unexpected kind of error also names its type."""
     text = error.args[0] if isinstance(error, KeyError) and error.args else error
     text = "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
-    if isinstance(error, (ValueError, OSError)):  # what commands raise for bad input
+    if isinstance(error, _EXPECTED):
         return text
     kind = type(error).__name__
     return f"{kind}: {text}" if text else kind
@@ -144,8 +152,10 @@ def _one_line(error: BaseException) -> str:
 def _fail(args: argparse.Namespace, error: Exception, code: int) -> int:
     if args.verbose >= 2:
         traceback.print_exception(error)
+    # A module of an extra that a command imported without checking first: name the extra.
+    error = missing_extra(error, "this command") or error
     hint = ""
-    if args.verbose < 2 and not isinstance(error, (ValueError, OSError)):
+    if args.verbose < 2 and not isinstance(error, _EXPECTED):
         hint = " (-vv shows the traceback)"
     print(f"o3d-spectral {args.command}: error: {_one_line(error)}{hint}", file=sys.stderr)
     return code

@@ -130,6 +130,11 @@ def _add_success_and_plugin_arguments(parser: argparse.ArgumentParser) -> None:
 def eval_command(args: argparse.Namespace) -> int:
     import time
 
+    from o3d_spectral._extras import require_modules
+
+    require_modules("this command", "pandas", "tqdm")
+    if args.cluster is not None:
+        require_modules("eval --cluster", "distributed")
     from o3d_spectral.cli import UsageError
     from o3d_spectral.harness import SuccessCriteria, run_eval
     from o3d_spectral.harness.selection import parse_shard

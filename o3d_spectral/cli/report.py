@@ -25,6 +25,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def report_command(args: argparse.Namespace) -> int:
+    from o3d_spectral._extras import require_modules
+
+    require_modules("this command", "pandas", "matplotlib")
     from o3d_spectral.harness.report import make_report
 
     written = make_report(args.results, args.out)

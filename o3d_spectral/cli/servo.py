@@ -147,6 +147,9 @@ def run(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
+    from o3d_spectral._extras import require_modules
+
+    require_modules("this command", "pybullet", "pybullet_data", "matplotlib", "tqdm")
     from tqdm import tqdm
 
     from o3d_spectral import servo

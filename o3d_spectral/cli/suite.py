@@ -65,6 +65,9 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from o3d_spectral._extras import require_modules
+
+    require_modules("this command", "tqdm")
     from o3d_spectral.synthetic.instance import SceneOptions
     from o3d_spectral.synthetic.suite import make_suite
 
@@ -86,6 +89,9 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
 
 def show_suite_command(args: argparse.Namespace) -> int:
+    from o3d_spectral._extras import require_modules
+
+    require_modules("this command", "matplotlib")
     from o3d_spectral.cli import UsageError
     from o3d_spectral.synthetic.suite import load_suite, save_instance_figure
 

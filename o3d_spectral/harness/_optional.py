@@ -4,9 +4,10 @@ an install hint, and orjson, used when it is installed."""
 from __future__ import annotations
 
 import contextlib
-import importlib
 import json
 from types import ModuleType
+
+from o3d_spectral import _extras
 
 try:  # not a dependency: reads JSON in a third of the time of json
     from orjson import loads as _fast_loads
@@ -15,14 +16,9 @@ except ImportError:  # pragma: no cover - exercised when orjson is missing
 
 
 def require(module: str) -> ModuleType:
-    """Import ``module`` or raise ``ImportError`` saying how to install the extra."""
-    try:
-        return importlib.import_module(module)
-    except ImportError as error:
-        raise ImportError(
-            f"the evaluation harness needs {module.split('.')[0]}: "
-            "pip install 'o3d-spectral[harness]'"
-        ) from error
+    """Import ``module`` or raise :class:`~o3d_spectral._extras.MissingExtraError` (an
+    ``ImportError``) naming the extra to install."""
+    return _extras.require(module, "the evaluation harness")
 
 
 def parse_json(text: str) -> object:

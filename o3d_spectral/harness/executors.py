@@ -15,13 +15,14 @@ paths.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import logging
 import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
+
+from o3d_spectral import _extras
 
 __all__ = ["SINGLE_THREAD", "dask_cluster", "local_pool", "require_distributed"]
 
@@ -30,12 +31,7 @@ SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 def require_distributed():
     """``dask.distributed``, or ``ImportError`` saying how to install the ``cluster`` extra."""
-    try:
-        return importlib.import_module("dask.distributed")
-    except ImportError as error:
-        raise ImportError(
-            "eval --cluster needs dask.distributed: pip install 'o3d-spectral[cluster]'"
-        ) from error
+    return _extras.require("dask.distributed", "eval --cluster")
 
 
 @contextlib.contextmanager

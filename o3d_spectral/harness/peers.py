@@ -146,7 +146,7 @@ def _register() -> None:
         if _available(module):
             _methods.register_method(name, settings=settings)(method)
         else:
-            _methods.UNAVAILABLE[name] = f"the {package} package: {_HINT}"
+            _methods.UNAVAILABLE[name] = f"the 'peers' extra ({package} is missing): {_HINT}"
     tuned = {
         "features": TUNED_FPFH,
         "tuning_split": TUNING_SPLIT,

@@ -1,4 +1,5 @@
-"""Registration cases on real sensor data (``datasets/real``; see its ``README.md``).
+"""Registration cases on real sensor data (``o3d_spectral/datasets/real``; see its
+``README.md``).
 
 Two sets, each with a verified ground truth:
 
@@ -15,8 +16,9 @@ Clouds are legacy ``open3d.geometry.PointCloud`` in metres, float64, **without n
 (``target ~ T_gt @ source``). :func:`randomly_rotated` turns a case's source by a seeded
 rotation uniform over SO(3) and returns the matching ground truth.
 
-The folder is the repository's ``datasets/real`` or, installed, ``<prefix>/share/
-o3d-spectral/real``; the environment variable ``O3D_SPECTRAL_REAL_DATA`` names another.
+The folder is the package data ``o3d_spectral/datasets/real``, read through
+:mod:`importlib.resources`; the environment variable ``O3D_SPECTRAL_REAL_DATA`` names
+another.
 """
 
 from __future__ import annotations

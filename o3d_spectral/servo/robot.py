@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import so3
+from .. import _extras, so3
 
 __all__ = ["HAND_EYE", "FLANGE_LINK", "Arm"]
 
@@ -40,14 +40,9 @@ HAND_EYE = np.array(
 
 
 def _pybullet():
-    try:
-        import pybullet
-        import pybullet_data
-    except ImportError as error:  # pragma: no cover
-        raise ImportError(
-            "the servo simulation needs pybullet: pip install 'o3d-spectral[servo]'"
-        ) from error
-    return pybullet, pybullet_data
+    """pybullet and its data, or ``ImportError`` naming the ``servo`` extra."""
+    what = "the servo simulation"
+    return _extras.require("pybullet", what), _extras.require("pybullet_data", what)
 
 
 def _pose(position: ArrayLike, quaternion: ArrayLike, pybullet) -> NDArray[np.float64]:

@@ -1,7 +1,7 @@
-"""Bundled object models (YCB, CC BY 4.0; see ``datasets/README.md``).
+"""Bundled object models (YCB, CC BY 4.0; see ``o3d_spectral/datasets/README.md``).
 
-The twelve meshes live in the repository's ``datasets/objects`` folder and are installed
-to ``<prefix>/share/o3d-spectral/objects`` by ``pip install``. Set the environment
+The twelve meshes are package data, ``o3d_spectral/datasets/objects``, read through
+:mod:`importlib.resources` wherever the package is installed. Set the environment
 variable ``O3D_SPECTRAL_DATA`` to a folder of ``*.ply`` meshes to use another one.
 """
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
+from o3d_spectral import _extras
 from o3d_spectral._files import check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
@@ -108,8 +109,7 @@ def _check_suite_arguments(condition: str, n: int, seed: int, workers: int) -> N
 def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -> list[dict]:
     """Manifest entries of ``tasks`` (see :func:`_build`), in order, from ``workers``
     processes (this one when 1)."""
-    from tqdm import tqdm
-
+    tqdm = _extras.require("tqdm", "suite generation (its progress bar)").tqdm
     bar = tqdm(total=len(tasks), desc=desc, unit="inst", disable=not progress)
     if workers == 1:
         entries = []
@@ -302,10 +302,9 @@ def save_instance_figure(
     behind the camera for scans; the second panel is cropped to 5 cm around the target
     object. At most ``max_points`` per cloud are drawn (a fixed subsample).
     """
-    import matplotlib
+    from o3d_spectral.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rng = np.random.default_rng(0)
 
