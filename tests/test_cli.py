@@ -74,7 +74,7 @@ def test_register_reports_bad_input(tmp_path, capsys):
     assert main(["-vv", "register", str(empty), str(empty), "--voxel-size", "0.008"]) == 1
     err = capsys.readouterr().err
     assert "Traceback (most recent call last)" in err
-    assert err.endswith(f"o3d-spectral register: error: {empty}: Open3D read no points from it\n")
+    assert f"\no3d-spectral register: error: {empty}: Open3D read no points from it" in err
 
 
 def test_version_and_usage_errors(capsys):
