@@ -36,6 +36,8 @@ from typing import TextIO
 
 COMMANDS = ("register", "demo", "suite", "eval", "report", "servo")
 LOG_FORMAT = "o3d-spectral: %(levelname)s: %(message)s"
+#: Seconds a command runs before its status line appears, and between redraws.
+STATUS_DELAY, STATUS_INTERVAL = 2.0, 0.5
 log = logging.getLogger(__name__)  # "o3d_spectral.cli", under the package logger
 
 
@@ -330,7 +332,8 @@ def _package_logging(level: int, status: str | None = None) -> Iterator[None]:
     """The package logger's records from ``level`` up on stderr while the block runs, and
     with ``status`` a status line labelled so fed by its records from INFO up."""
     package = logging.getLogger("o3d_spectral")
-    line = StatusLine(sys.stderr, status) if status else None
+    line = (StatusLine(sys.stderr, status, delay=STATUS_DELAY, interval=STATUS_INTERVAL)
+            if status else None)
     handler = _StderrHandler(sys.stderr, line)
     handler.setFormatter(logging.Formatter(LOG_FORMAT))
     handler.setLevel(level)
