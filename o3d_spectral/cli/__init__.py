@@ -173,31 +173,38 @@ def _stdout_for_results_only() -> Iterator[None]:
     descriptor 1), and :func:`results` is the standard output: it holds the command's
     results only."""
     global _results
-    saved = sys.stdout, _results
+    if _results is not None or sys.stdout is None or sys.stderr is None:
+        yield  # a command run by a command (already so), or no standard streams
+        return
+    saved = sys.stdout
     sys.stdout.flush()
     sys.stderr.flush()
     try:
-        real = os.dup(1)
-        os.dup2(2, 1)
-    except OSError:  # no descriptor 1 or 2: nothing to keep apart at that level
+        real: int | None = os.dup(1)
+    except OSError:  # no descriptor 1: nothing to keep apart at that level
         real = None
-    _results = sys.stdout
-    if real is not None and _writes_to(sys.stdout, 1):  # the results go to the real one
-        line_buffered = getattr(sys.stdout, "line_buffering", False)
-        _results = open(real, "w", buffering=1 if line_buffered else -1,  # noqa: SIM115
-                        encoding=sys.stdout.encoding, errors=sys.stdout.errors,
-                        closefd=False)
-    sys.stdout = sys.stderr
+    if real is not None:
+        try:
+            os.dup2(2, 1)
+        except OSError:  # no descriptor 2: leave descriptor 1 as it is
+            os.close(real)
+            real = None
+    wrapper = None
+    if real is not None and _writes_to(saved, 1):  # the results go to the real one
+        line_buffered = getattr(saved, "line_buffering", False)
+        wrapper = open(real, "w", buffering=1 if line_buffered else -1,  # noqa: SIM115
+                       encoding=saved.encoding, errors=saved.errors, closefd=False)
+    _results, sys.stdout = wrapper or saved, sys.stderr
     try:
         yield
     finally:
         _flush_c_stdout()
-        if _results is not saved[0]:
-            _results.close()  # flushed; the descriptor stays open (closefd=False)
+        if wrapper is not None:
+            wrapper.close()  # flushed; the descriptor stays open (closefd=False)
         if real is not None:
             os.dup2(real, 1)
             os.close(real)
-        sys.stdout, _results = saved
+        sys.stdout, _results = saved, None
 
 
 class StatusLine:
