@@ -37,7 +37,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("target", type=Path, help="target cloud (any file Open3D reads)")
     parser.add_argument("--voxel-size", type=float, required=True, help="voxel edge, metres")
     parser.add_argument(
-        "--init", type=Path,
+        "--init", type=Path, metavar="FILE",
         help="text file with a 4x4 initial transformation (then a local registration)",
     )
     parser.add_argument("--bandwidth", type=int, default=16, help="EGI bandwidth B (l < B)")
