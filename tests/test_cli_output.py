@@ -17,7 +17,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral.cli as cli
-from o3d_spectral.cli import build_parser, main
+from o3d_spectral.cli import _output, build_parser, main
 from tests.conftest import sample_model
 
 REPO = Path(__file__).resolve().parents[1]
@@ -166,10 +166,10 @@ def test_status_line_on_a_terminal_follows_the_log(monkeypatch):
     before a log line and at the end."""
     terminal = _Terminal()
     monkeypatch.setattr(sys, "stderr", terminal)
-    monkeypatch.setattr(cli, "STATUS_DELAY", 0.05)
-    monkeypatch.setattr(cli, "STATUS_INTERVAL", 0.02)
+    monkeypatch.setattr(_output, "STATUS_DELAY", 0.05)
+    monkeypatch.setattr(_output, "STATUS_INTERVAL", 0.02)
     stage = logging.getLogger("o3d_spectral.registration")
-    with cli._package_logging(logging.WARNING, "o3d-spectral register"):
+    with _output._package_logging(logging.WARNING, "o3d-spectral register"):
         stage.info("stage %s: %.3f s", "sweep", 1.25)
         time.sleep(0.3)
         stage.warning("something to say")

@@ -54,11 +54,26 @@ def _per_iteration(history) -> float:
     return float(np.median(np.diff(times))) if len(times) > 1 else float(times[0])
 
 
+def _errors(T, instance) -> dict[str, float]:
+    """Errors of ``T`` against the instance's truth, plain and symmetry-aware (translation
+    errors at the object's centroid)."""
+    from o3d_spectral.harness import errors
+
+    T_gt, center, symmetry = instance.T_gt, instance.source_center, instance.symmetry
+    return {
+        "rotation_error_deg": errors.rotation_error(T, T_gt),
+        "translation_error_m": errors.translation_error(T, T_gt, center=center),
+        "symmetric_rotation_error_deg": errors.symmetric_rotation_error(T, T_gt, symmetry),
+        "symmetric_translation_error_m": errors.symmetric_translation_error(
+            T, T_gt, symmetry, center=center
+        ),
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
     from o3d_spectral import plots
     from o3d_spectral.cli import UsageError, results
-    from o3d_spectral.harness import errors as errors_
     from o3d_spectral.synthetic.instance import SceneOptions
     from o3d_spectral.synthetic.scenes import make_instance
 
@@ -73,16 +88,7 @@ def run(args: argparse.Namespace) -> int:
     )
     result = o3d_spectral.registration_spectral(instance.source, instance.target, args.voxel_size)
     T_gt, T, center = instance.T_gt, result.transformation, instance.source_center
-    errors = {  # translation errors at the object's centroid
-        "rotation_error_deg": errors_.rotation_error(T, T_gt),
-        "translation_error_m": errors_.translation_error(T, T_gt, center=center),
-        "symmetric_rotation_error_deg": errors_.symmetric_rotation_error(
-            T, T_gt, instance.symmetry
-        ),
-        "symmetric_translation_error_m": errors_.symmetric_translation_error(
-            T, T_gt, instance.symmetry, center=center
-        ),
-    }
+    errors = _errors(T, instance)
     args.out.mkdir(parents=True, exist_ok=True)
     figure = plots.plot_convergence(
         result.history, args.out / "convergence.png", ground_truth=T_gt, center=center,
@@ -90,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         f"({instance.metadata['init_angle_deg']:.0f} deg initial rotation)",
         final=T,
     )
-    law_rotation = errors_.rotation_error(result.history[-1].transformation, T_gt)
+    law_rotation = _errors(result.history[-1].transformation, instance)["rotation_error_deg"]
     summary = {
         "config": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                    if k != "func"},

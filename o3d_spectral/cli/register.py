@@ -200,6 +200,34 @@ def _reading(reading) -> dict:
             "two_sided": reading.two_sided}
 
 
+def _read_logged(path: Path, drop_nan: bool):
+    """:func:`_read_cloud`, logging what was read and how long it took."""
+    start = time.perf_counter()
+    cloud = _read_cloud(path, drop_nan=drop_nan)
+    log.info("read %s: %d points%s in %.2f s", path, len(cloud.points),
+             " with normals" if cloud.has_normals() else "", time.perf_counter() - start)
+    return cloud
+
+
+def _summary(result) -> dict:
+    """The result as JSON values (``--json``)."""
+    return {
+        "transformation": result.transformation.tolist(),
+        "fitness": result.fitness,
+        "inlier_rmse": result.inlier_rmse,
+        "max_correspondence_distance": result.max_correspondence_distance,
+        "converged": result.converged,
+        "num_iterations": result.num_iterations,
+        "run_time": result.run_time,
+        "confidence": result.confidence,
+        "source_normals": _reading(result.source_reading),
+        "target_normals": _reading(result.target_reading),
+        "target_viewpoint": None if result.target_viewpoint is None
+        else result.target_viewpoint.tolist(),
+        "warnings": result.warnings,
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     import open3d as o3d
 
@@ -209,14 +237,7 @@ def run(args: argparse.Namespace) -> int:
     if args.save:
         _check_save(args.save)
     init = _read_init(args.init) if args.init else None
-    clouds = []
-    for path in (args.source, args.target):
-        start = time.perf_counter()
-        clouds.append(_read_cloud(path, drop_nan=args.drop_nan))
-        log.info("read %s: %d points%s in %.2f s", path, len(clouds[-1].points),
-                 " with normals" if clouds[-1].has_normals() else "",
-                 time.perf_counter() - start)
-    source, target = clouds
+    source, target = (_read_logged(path, args.drop_nan) for path in (args.source, args.target))
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
     cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
@@ -237,21 +258,7 @@ def run(args: argparse.Namespace) -> int:
         raise FloatingPointError("the registration produced a non-finite transformation")
     log.info("registered in %.2f s: fitness %.3f, inlier rmse %.4f m, %d iterations",
              result.run_time, result.fitness, result.inlier_rmse, result.num_iterations)
-    summary = {
-        "transformation": result.transformation.tolist(),
-        "fitness": result.fitness,
-        "inlier_rmse": result.inlier_rmse,
-        "max_correspondence_distance": result.max_correspondence_distance,
-        "converged": result.converged,
-        "num_iterations": result.num_iterations,
-        "run_time": result.run_time,
-        "confidence": result.confidence,
-        "source_normals": _reading(result.source_reading),
-        "target_normals": _reading(result.target_reading),
-        "target_viewpoint": None if result.target_viewpoint is None
-        else result.target_viewpoint.tolist(),
-        "warnings": result.warnings,
-    }
+    summary = _summary(result)
     if args.save:
         moved = o3d.geometry.PointCloud(source).transform(result.transformation)
         if not o3d.io.write_point_cloud(str(args.save), moved):
