@@ -3,6 +3,10 @@
 Each kernel is a plain loop over its input, compiled on first use and cached on disk
 (``cache=True``: later processes load it). The functions are pure and single-threaded;
 their callers check and shape the arguments.
+
+Compiling them takes about 2 s of CPU once after installation; loading them from the
+cache, about 0.4 s in each process that uses them. ``python -m o3d_spectral.kernels``
+(:func:`compile_all`) compiles them ahead, so that no registration pays for it.
 """
 
 from __future__ import annotations
@@ -11,7 +15,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["harmonic_sums", "splat_into"]
+__all__ = ["compile_all", "harmonic_sums", "splat_into"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -122,3 +126,21 @@ def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
                             grid[x, y, z] = 1.0
                     else:
                         grid[x, y, z] += w
+
+
+def compile_all() -> None:
+    """Compile (or load from the cache) every kernel for the argument types the package
+    passes: C-contiguous float64 arrays, each combination of the flags."""
+    grid, u, weights = np.zeros((2, 2, 2)), np.zeros((1, 3)), np.ones(1)
+    for trilinear in (False, True):
+        for binary in (False, True):
+            splat_into(grid, u, weights, trilinear, binary)
+    harmonic_sums(np.array([[0.0, 0.0, 1.0]]), weights, 2)
+
+
+if __name__ == "__main__":
+    import time
+
+    start = time.perf_counter()
+    compile_all()
+    print(f"o3d_spectral kernels ready in {time.perf_counter() - start:.1f} s")

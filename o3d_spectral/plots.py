@@ -55,12 +55,15 @@ def plot_convergence(
     ground_truth: ArrayLike | None = None,
     center: ArrayLike | None = None,
     title: str = "",
+    final: ArrayLike | None = None,
 ) -> Path:
     """Save the paper's Fig. 2: errors (or costs) against iteration, as a PNG.
 
     With ``ground_truth`` the panels show the translation (mm) and rotation (degrees)
     errors (translation at the source point ``center``); without, the costs ``J_t`` and
-    ``J_r``. A third panel shows both gradient norms.
+    ``J_r``. A third panel shows both gradient norms. With ``ground_truth`` and ``final``
+    (the transformation returned, after the refinement that follows the law), the error
+    panels end with its errors, a distinct marker one step after the last iteration.
 
     Returns
     -------
@@ -79,10 +82,17 @@ def plot_convergence(
             ([h.cost_rotation for h in history], "$J_r$"),
         ]
     for ax, (values, label) in zip(axes[:2], panels, strict=True):
-        ax.plot(it, values, "o-", ms=3)
+        ax.plot(it, values, "o-", ms=3, label="law")
         ax.set_xlabel("iteration")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+    if ground_truth is not None and final is not None:
+        after = (it[-1] if len(it) else 0) + 1
+        final_errors = (1000 * translation_error(final, ground_truth, center=center),
+                        rotation_error(final, ground_truth))
+        for ax, value in zip(axes[:2], final_errors, strict=True):
+            ax.plot([after], [value], "*", ms=10, color="C3", label="result (refined)")
+            ax.legend()
     ax = axes[2]
     ax.semilogy(it, [h.translation_gradient_norm * 1000 for h in history], label="|grad T| (mm)")
     ax.semilogy(it, [np.rad2deg(h.rotation_gradient_norm) for h in history],

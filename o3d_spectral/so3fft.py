@@ -79,12 +79,38 @@ def _diagonalising_basis(bandwidth: int) -> NDArray[np.complex128]:
 @lru_cache(maxsize=8)
 def _delta(bandwidth: int, n_beta: int) -> NDArray[np.complex128]:
     """``Delta^l(beta_j) = W Q Uz(beta_j) Q^T W^H``, shape (n_beta, B, 2B-1, 2B-1)."""
-    W = _diagonalising_basis(bandwidth)
     Q = _quarter_turn(bandwidth)
     betas = np.pi * (np.arange(n_beta) + 0.5) / n_beta
     d = np.stack([Q @ wigner_z(beta, bandwidth) @ Q.transpose(0, 2, 1) for beta in betas])
-    out = W @ d @ W.conj().T
+    out = _change_basis(d)
     out.flags.writeable = False
+    return out
+
+
+def _change_basis(d: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """``W d W^H`` for real stacked ``d`` (..., 2B-1, 2B-1), ``W`` of
+    :func:`_diagonalising_basis`.
+
+    Row ``m`` of ``W`` mixes only orders ``m`` and ``-m``, so each side is a few real
+    slices (no dense complex product: at a large bandwidth those products were most of
+    the first global search of a process)."""
+    h = d.shape[-1] // 2  # order m at index h + m
+    r = 1.0 / np.sqrt(2.0)
+    up, down = slice(h + 1, None), slice(0, h)  # m = 1..h; m = -h..-1
+    up_mirror = slice(h - 1, None, -1) if h else slice(0, 0)  # -m for m = 1..h
+    down_mirror = slice(2 * h, h, -1)  # -m for m = -h..-1
+    # X = W d = Xr + i Xi (rows)
+    Xr, Xi = np.empty_like(d), np.empty_like(d)
+    Xr[..., h, :], Xi[..., h, :] = d[..., h, :], 0.0
+    Xr[..., up, :], Xi[..., up, :] = r * d[..., up, :], r * d[..., up_mirror, :]
+    Xr[..., down, :], Xi[..., down, :] = r * d[..., down_mirror, :], -r * d[..., down, :]
+    # X W^H (columns)
+    out = np.empty(d.shape, dtype=np.complex128)
+    out.real[..., h], out.imag[..., h] = Xr[..., h], Xi[..., h]
+    out.real[..., up] = r * (Xr[..., up] + Xi[..., up_mirror])
+    out.imag[..., up] = r * (Xi[..., up] - Xr[..., up_mirror])
+    out.real[..., down] = r * (Xr[..., down_mirror] - Xi[..., down])
+    out.imag[..., down] = r * (Xi[..., down_mirror] + Xr[..., down])
     return out
 
 

@@ -10,25 +10,37 @@ code: 0 success, 1 a failed run (any exception while running), 2 a usage error (
 own, or :class:`UsageError` from a command's checks of its options). A command that needs
 an optional extra checks for it first (:func:`o3d_spectral._extras.require_modules`); a
 missing module of an extra is reported on one line naming the extra, exit code 1.
+
+Standard output is the command's result only: while a command runs, whatever C++ code
+writes to file descriptor 1 (Open3D's log) goes to stderr, as do the package's log
+records (``-v``: its progress at INFO, as it happens). On a terminal, a call running
+longer than a couple of seconds also shows a status line on stderr (the time so far and
+the latest progress message), erased when it ends; never in a pipe or a file.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import logging
 import platform
 import sys
 import time
 import traceback
-from collections.abc import Iterator
 from importlib import metadata
 
 from o3d_spectral._extras import MissingExtraError, missing_extra
+from o3d_spectral.cli._output import (
+    _logging_to_stderr,
+    _stdout_for_results_only,
+    is_terminal,
+    results,
+)
+
+__all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "results",
+           "show_progress", "versions"]
 
 COMMANDS = ("register", "demo", "suite", "eval", "report", "servo")
-LOG_FORMAT = "o3d-spectral: %(levelname)s: %(message)s"
 log = logging.getLogger(__name__)  # "o3d_spectral.cli", under the package logger
 
 
@@ -64,75 +76,63 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """``--help`` that shows each option's default (unless its text already says it) and
+    keeps the line breaks of a description or epilog written on several lines (the
+    examples); a text on one line is wrapped to the terminal as usual."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help
+        default = action.default
+        shown = not (default is None or default is False or default is argparse.SUPPRESS
+                     or (isinstance(default, (list, tuple)) and not default))
+        if (text and action.option_strings and shown and "default" not in text
+                and text is not argparse.SUPPRESS):
+            text += " (default: %(default)s)"
+        return text
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if "\n" in text:
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="o3d-spectral",
         description="Spectral point-cloud registration and 3D visual servoing for Open3D.",
         epilog="exit codes: 0 success, 1 the command failed, 2 a usage error",
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action=_VersionAction,
                         help="print the versions of o3d-spectral, Open3D, NumPy, SciPy, Python")
-    # Global options come before COMMAND. dest "quiet" is taken by the commands' own --quiet
-    # (no progress bar), which argparse would let overwrite this one.
+    # Global options come before COMMAND. dest "errors_only": a command's own option
+    # with the same dest would overwrite it (argparse applies the sub-parser's defaults).
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("-v", "--verbose", action="count", default=0,
                            help="more messages on stderr: -v progress (INFO), -vv debugging "
                            "and the traceback of a failure (DEBUG)")
     verbosity.add_argument("-q", "--quiet", dest="errors_only", action="store_true",
-                           help="errors only on stderr (also Open3D's warnings)")
+                           help="errors only on stderr (also Open3D's warnings): no "
+                           "progress bar or status line")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"o3d_spectral.cli.{name}").add_parser(subparsers)
+    for command in subparsers.choices.values():
+        command.formatter_class = HelpFormatter
     return parser
+
+
+def show_progress(args: argparse.Namespace) -> bool:
+    """Whether a command shows a progress bar: on a terminal's stderr only (a bar's
+    carriage-return frames would fill a log or a pipe), and not with ``-q``."""
+    return not getattr(args, "errors_only", False) and is_terminal(sys.stderr)
 
 
 def _log_level(args: argparse.Namespace) -> int:
     if args.errors_only:
         return logging.ERROR
     return {0: logging.WARNING, 1: logging.INFO}.get(args.verbose, logging.DEBUG)
-
-
-@contextlib.contextmanager
-def _logging_to_stderr(level: int, *, open3d: bool = True) -> Iterator[None]:
-    """Show the package logger's records from ``level`` up on stderr, and Open3D's messages
-    from the matching level, while a command runs; restored afterwards, since ``main`` may
-    be called several times in one process (tests, eval/run_benchmark.py). ``open3d``:
-    False for a command that does not use Open3D (``report``: its import takes seconds)."""
-    if not open3d:
-        with _package_logging(level):
-            yield
-        return
-    import open3d as o3d
-
-    saved = o3d.utility.get_verbosity_level()
-    verbosity = o3d.utility.VerbosityLevel
-    o3d.utility.set_verbosity_level({
-        logging.ERROR: verbosity.Error, logging.WARNING: verbosity.Warning,
-        logging.INFO: verbosity.Info, logging.DEBUG: verbosity.Debug,
-    }[level])
-    try:
-        with _package_logging(level):
-            yield
-    finally:
-        o3d.utility.set_verbosity_level(saved)
-
-
-@contextlib.contextmanager
-def _package_logging(level: int) -> Iterator[None]:
-    """The package logger's records from ``level`` up on stderr while the block runs."""
-    package = logging.getLogger("o3d_spectral")
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter(LOG_FORMAT))
-    saved = package.level, package.propagate
-    package.addHandler(handler)
-    package.setLevel(level)
-    package.propagate = False  # printed once even if something configured the root logger
-    try:
-        yield
-    finally:
-        package.removeHandler(handler)
-        package.setLevel(saved[0])
-        package.propagate = saved[1]
 
 
 #: What commands raise for bad input or a missing extra: shown by message alone.
@@ -161,13 +161,23 @@ def _fail(args: argparse.Namespace, error: Exception, code: int) -> int:
     return code
 
 
+def _status_label(args: argparse.Namespace) -> str | None:
+    """The status line's label for a command that wants one (``status`` default set by
+    the command), on a terminal, without ``-q``; else None."""
+    if getattr(args, "status", False) and show_progress(args):
+        return f"o3d-spectral {args.command}"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``o3d-spectral`` with ``argv`` (default ``sys.argv[1:]``); the exit code."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exit_:  # --help, --version, or a usage error argparse printed
         return exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
-    with _logging_to_stderr(_log_level(args), open3d=getattr(args, "open3d", True)):
+    with _stdout_for_results_only(), _logging_to_stderr(
+        _log_level(args), open3d=getattr(args, "open3d", True), status=_status_label(args)
+    ):
         log.debug("arguments: %s", {k: v for k, v in vars(args).items() if k != "func"})
         start = time.perf_counter()
         try:

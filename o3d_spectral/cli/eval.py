@@ -62,7 +62,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     _add_executor_and_selection_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
     _add_success_and_plugin_arguments(parser)
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", dest="errors_only", action="store_true",
+                        default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # as -q, once its own
     parser.set_defaults(func=eval_command)
 
 
@@ -135,7 +136,7 @@ def eval_command(args: argparse.Namespace) -> int:
     require_modules("this command", "pandas", "tqdm")
     if args.cluster is not None:
         require_modules("eval --cluster", "distributed")
-    from o3d_spectral.cli import UsageError
+    from o3d_spectral.cli import UsageError, results, show_progress
     from o3d_spectral.harness import SuccessCriteria, run_eval
     from o3d_spectral.harness.selection import parse_shard
 
@@ -161,7 +162,7 @@ def eval_command(args: argparse.Namespace) -> int:
             max_rotation_deg=args.max_rotation_deg, max_translation_m=args.max_translation
         ),
         plugins=args.plugin,
-        progress=not args.quiet,
+        progress=show_progress(args),
     )
-    print(f"wrote {table} in {time.perf_counter() - start:.1f} s")
+    print(f"wrote {table} in {time.perf_counter() - start:.1f} s", file=results())
     return 0

@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
+import logging
+import os
+import re
 import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 EXAMPLE = "example: o3d-spectral register model.ply scan.pcd --voxel-size 0.008 --json"
+#: Extensions of the files Open3D writes a point cloud to.
+SAVE_FORMATS = (".ply", ".pcd", ".pts", ".xyz", ".xyzn", ".xyzrgb")
+
+log = logging.getLogger(__name__)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -26,12 +37,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("target", type=Path, help="target cloud (any file Open3D reads)")
     parser.add_argument("--voxel-size", type=float, required=True, help="voxel edge, metres")
     parser.add_argument(
-        "--init", type=Path,
+        "--init", type=Path, metavar="FILE",
         help="text file with a 4x4 initial transformation (then a local registration)",
     )
     parser.add_argument("--bandwidth", type=int, default=16, help="EGI bandwidth B (l < B)")
-    parser.add_argument("--max-iteration", type=int, default=100)
-    parser.add_argument("--json", action="store_true", help="print a JSON object instead")
+    parser.add_argument("--max-iteration", type=int, default=100,
+                        help="most iterations of the law (per hypothesis when global)")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object instead (the only thing on stdout)")
     parser.add_argument(
         "--camera-location", type=float, nargs=3, metavar=("X", "Y", "Z"),
         help="where the sensor was (metres), to orient the normals estimated (or oriented "
@@ -48,29 +61,67 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "recognised from its normals and depth; 'none': a model",
     )
     parser.add_argument("--save", type=Path, metavar="FILE",
-                        help="write the source moved by the result (any format Open3D writes)")
+                        help="write the source moved by the result (" + ", ".join(SAVE_FORMATS)
+                        + "); its folder is checked before the registration runs")
     parser.add_argument(
         "--drop-nan", action="store_true",
         help="drop points with NaN or infinite coordinates (with a warning) instead of "
         "refusing the file",
     )
-    parser.set_defaults(func=run)
+    parser.set_defaults(func=run, status=True)
+
+
+@contextlib.contextmanager
+def _open3d_failures() -> Iterator[list[str]]:
+    """The reading failures Open3D reports during the block (it returns what it read so
+    far, and tells Python nothing), as a list filled when the block ends.
+
+    Open3D's Python module prints its messages through ``sys.stdout``: they are caught
+    there (at least its warnings, whatever the verbosity) and passed on when the
+    verbosity shows them, except the failures, which the caller reports."""
+    import open3d as o3d
+
+    level = o3d.utility.get_verbosity_level()
+    shown = level.value >= o3d.utility.VerbosityLevel.Warning.value
+    caught, printed_to = io.StringIO(), sys.stdout
+    failures: list[str] = []
+    sys.stdout = caught
+    if not shown:
+        o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Warning)
+    try:
+        yield failures
+    finally:
+        sys.stdout = printed_to
+        o3d.utility.set_verbosity_level(level)
+        for line in caught.getvalue().splitlines(keepends=True):
+            text = re.sub(r"\x1b\[[0-9;]*m", "", line).strip()
+            if text.startswith("[Open3D WARNING]") and "failed" in text.lower():
+                failures.append(text.removeprefix("[Open3D WARNING]").strip())
+            elif shown:
+                printed_to.write(line)
 
 
 def _read_cloud(path: Path, *, drop_nan: bool = False):
     """The cloud in ``path``: its points (and normals), or a mesh file's vertices (and
-    vertex normals). Refuses a missing, truncated or corrupt file and non-finite points
-    (``drop_nan``: drops those, with a warning), naming the file."""
+    vertex normals). Refuses a missing, truncated or corrupt file (also one Open3D reads
+    only in part) and non-finite points (``drop_nan``: drops those, with a warning),
+    naming the file."""
     import open3d as o3d
 
     from o3d_spectral._files import check_cloud_file, check_finite
 
     check_cloud_file(path)
-    cloud = o3d.io.read_point_cloud(str(path))
+    with _open3d_failures() as failures:
+        cloud = o3d.io.read_point_cloud(str(path))
+    if failures and len(cloud.points):
+        raise ValueError(f"{path}: Open3D read it only in part ({'; '.join(failures)})")
     if len(cloud.points) == 0:  # a mesh file: use its vertices and normals
-        mesh = o3d.io.read_triangle_mesh(str(path))
+        with _open3d_failures() as mesh_failures:
+            mesh = o3d.io.read_triangle_mesh(str(path))
         if len(mesh.vertices) == 0:
-            raise ValueError(f"{path}: Open3D read no points from it")
+            why = "; ".join(dict.fromkeys(failures + mesh_failures))  # each once
+            raise ValueError(f"{path}: Open3D read no points from it" + (f" ({why})" if why
+                                                                          else ""))
         check_finite(np.asarray(mesh.vertices), path, what="vertices")
         mesh.compute_vertex_normals()
         cloud = o3d.geometry.PointCloud(mesh.vertices)
@@ -96,9 +147,35 @@ def _read_init(path: Path) -> np.ndarray:
         init = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except ValueError as error:
         raise ValueError(f"--init {path}: not a 4x4 matrix of numbers ({error})") from None
-    if init.shape != (4, 4) or not np.all(np.isfinite(init)):
-        raise ValueError(f"--init {path}: not a finite 4x4 matrix (shape {init.shape})")
+    if init.shape != (4, 4):
+        rows, columns = init.shape
+        raise ValueError(f"--init {path}: not a 4x4 matrix: {rows} rows of {columns} numbers")
+    bad = np.argwhere(~np.isfinite(init))
+    if len(bad):
+        where = ", ".join(f"row {r + 1} column {c + 1}" for r, c in bad[:4])
+        more = f" and {len(bad) - 4} more" if len(bad) > 4 else ""
+        raise ValueError(f"--init {path}: {len(bad)} of its 16 numbers are not finite "
+                         f"(NaN or infinite): {where}{more}")
     return init
+
+
+def _check_save(path: Path) -> None:
+    """Refuse ``--save FILE`` before any work when Open3D could not write it: an
+    extension it does not write, a folder that does not exist or cannot be written to,
+    or a folder in its place."""
+    from o3d_spectral.cli import UsageError
+
+    if path.suffix.lower() not in SAVE_FORMATS:
+        raise UsageError(f"--save {path}: Open3D writes a point cloud to "
+                         f"{', '.join(SAVE_FORMATS)} files, not {path.suffix or 'no extension'}")
+    folder = path.parent
+    if not folder.is_dir():
+        raise FileNotFoundError(f"--save {path}: no such folder: {folder}")
+    if path.is_dir():
+        raise IsADirectoryError(f"--save {path}: a folder, not a file")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists()
+                                                  and not os.access(path, os.W_OK)):
+        raise PermissionError(f"--save {path}: not allowed to write there")
 
 
 def _viewpoint(text: str) -> str | tuple[float, ...] | None:
@@ -123,30 +200,18 @@ def _reading(reading) -> dict:
             "two_sided": reading.two_sided}
 
 
-def run(args: argparse.Namespace) -> int:
-    import open3d as o3d
+def _read_logged(path: Path, drop_nan: bool):
+    """:func:`_read_cloud`, logging what was read and how long it took."""
+    start = time.perf_counter()
+    cloud = _read_cloud(path, drop_nan=drop_nan)
+    log.info("read %s: %d points%s in %.2f s", path, len(cloud.points),
+             " with normals" if cloud.has_normals() else "", time.perf_counter() - start)
+    return cloud
 
-    import o3d_spectral
 
-    source = _read_cloud(args.source, drop_nan=args.drop_nan)
-    target = _read_cloud(args.target, drop_nan=args.drop_nan)
-    init = _read_init(args.init) if args.init else None
-    option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
-    criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
-    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
-                                     target_viewpoint=_viewpoint(args.target_viewpoint),
-                                     source_camera_location=args.source_camera_location)
-    if init is not None:
-        result = o3d_spectral.registration_spectral(
-            source, target, args.voxel_size, init, option, criteria, cloud=cloud
-        )
-    else:
-        result = o3d_spectral.registration_spectral_global(
-            source, target, args.voxel_size, option, criteria, cloud=cloud
-        )
-    if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
-        raise FloatingPointError("the registration produced a non-finite transformation")
-    summary = {
+def _summary(result) -> dict:
+    """The result as JSON values (``--json``)."""
+    return {
         "transformation": result.transformation.tolist(),
         "fitness": result.fitness,
         "inlier_rmse": result.inlier_rmse,
@@ -161,18 +226,53 @@ def run(args: argparse.Namespace) -> int:
         else result.target_viewpoint.tolist(),
         "warnings": result.warnings,
     }
+
+
+def run(args: argparse.Namespace) -> int:
+    import open3d as o3d
+
+    import o3d_spectral
+    from o3d_spectral.cli import results
+
+    if args.save:
+        _check_save(args.save)
+    init = _read_init(args.init) if args.init else None
+    source, target = (_read_logged(path, args.drop_nan) for path in (args.source, args.target))
+    option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
+    criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
+    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
+                                     target_viewpoint=_viewpoint(args.target_viewpoint),
+                                     source_camera_location=args.source_camera_location)
+    log.info("registering %s onto %s at %g m voxels, bandwidth %d: %s", args.source.name,
+             args.target.name, args.voxel_size, args.bandwidth,
+             "the law from --init" if init is not None else "global search over SO(3)")
+    if init is not None:
+        result = o3d_spectral.registration_spectral(
+            source, target, args.voxel_size, init, option, criteria, cloud=cloud
+        )
+    else:
+        result = o3d_spectral.registration_spectral_global(
+            source, target, args.voxel_size, option, criteria, cloud=cloud
+        )
+    if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
+        raise FloatingPointError("the registration produced a non-finite transformation")
+    log.info("registered in %.2f s: fitness %.3f, inlier rmse %.4f m, %d iterations",
+             result.run_time, result.fitness, result.inlier_rmse, result.num_iterations)
+    summary = _summary(result)
     if args.save:
         moved = o3d.geometry.PointCloud(source).transform(result.transformation)
         if not o3d.io.write_point_cloud(str(args.save), moved):
             raise OSError(f"--save: Open3D could not write {args.save}")
+        log.info("wrote %s", args.save)
+    out = results()
     if args.json:
-        json.dump(summary, sys.stdout, indent=2)
-        print()
+        json.dump(summary, out, indent=2)
+        print(file=out)
     else:
-        np.savetxt(sys.stdout, result.transformation, fmt="%.9f")
+        np.savetxt(out, result.transformation, fmt="%.9f")
         print(
             f"fitness {result.fitness:.4f}  inlier_rmse {result.inlier_rmse:.6f} m  "
             f"(at {result.max_correspondence_distance} m)  converged {result.converged}  "
-            f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
+            f"iterations {result.num_iterations}  time {result.run_time:.3f} s", file=out,
         )
     return 0

@@ -28,8 +28,10 @@ def report_command(args: argparse.Namespace) -> int:
     from o3d_spectral._extras import require_modules
 
     require_modules("this command", "pandas", "matplotlib")
+    from o3d_spectral.cli import results
     from o3d_spectral.harness.report import make_report
 
     written = make_report(args.results, args.out)
-    print(f"wrote {len(written)} files to {args.out}: {', '.join(sorted(written))}")
+    print(f"wrote {len(written)} files to {args.out}: {', '.join(sorted(written))}",
+          file=results())
     return 0

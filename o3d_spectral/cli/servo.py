@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from o3d_spectral import servo
-    from o3d_spectral.cli import UsageError
+    from o3d_spectral.cli import UsageError, results, show_progress
 
     if args.trials < 1:
         raise UsageError(f"--trials must be >= 1, got {args.trials}")
@@ -169,25 +169,27 @@ def run(args: argparse.Namespace) -> int:
     seeds = range(args.seed, args.seed + args.trials)
     jobs = [(seed, options, args.out if args.trials == 1 else args.out / f"seed_{seed:04d}",
              config) for seed in seeds]
-    bar = dict(total=len(jobs), desc="trials", unit="run", disable=args.trials == 1)
+    bar = dict(total=len(jobs), desc="trials", unit="run",
+               disable=args.trials == 1 or not show_progress(args))
     if args.workers == 1:
-        results = [_trial_job(job) for job in tqdm(jobs, **bar)]
+        done = [_trial_job(job) for job in tqdm(jobs, **bar)]
     else:
         with ProcessPoolExecutor(max_workers=args.workers,
                                  mp_context=get_context("spawn")) as pool:
-            results = list(tqdm(pool.map(_trial_job, jobs), **bar))
-    rows = [row for row, _ in results]
-    controller_times = [t for _, times in results for t in times]
+            done = list(tqdm(pool.map(_trial_job, jobs), **bar))
+    rows = [row for row, _ in done]
+    controller_times = [t for _, times in done for t in times]
+    out = results()
     median_ms = 1000 * float(np.median(controller_times))
     for row in rows if args.trials == 1 else []:
         print(f"seed {row['seed']}: start {1000 * row['start_translation_m']:.0f} mm, "
               f"{row['start_rotation_deg']:.1f} deg -> final "
               f"{1000 * row['final_translation_m']:.2f} mm, {row['final_rotation_deg']:.3f} "
               f"deg in {row['time_s']:.1f} s ({row['cycles']} cycles), "
-              f"{'converged' if row['converged'] else 'time limit'}")
+              f"{'converged' if row['converged'] else 'time limit'}", file=out)
     if args.trials > 1:
         for key, value in _write_summary(rows, args.out).items():
-            print(f"{key}: {value}")
-    print(f"controller time per cycle (capture excluded), median: {median_ms:.0f} ms")
-    print(f"wrote {args.out}")
+            print(f"{key}: {value}", file=out)
+    print(f"controller time per cycle (capture excluded), median: {median_ms:.0f} ms", file=out)
+    print(f"wrote {args.out}", file=out)
     return 0

@@ -45,7 +45,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     make.add_argument(
         "--workers", type=int, default=1, help="worker processes (output does not depend on it)"
     )
-    make.add_argument("--quiet", action="store_true", help="no progress bar")
+    make.add_argument("--quiet", dest="errors_only", action="store_true",
+                      default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # as -q, once its own
     make.set_defaults(func=make_suite_command)
 
     show = subparsers.add_parser(
@@ -68,6 +69,7 @@ def make_suite_command(args: argparse.Namespace) -> int:
     from o3d_spectral._extras import require_modules
 
     require_modules("this command", "tqdm")
+    from o3d_spectral.cli import results, show_progress
     from o3d_spectral.synthetic.instance import SceneOptions
     from o3d_spectral.synthetic.suite import make_suite
 
@@ -81,10 +83,11 @@ def make_suite_command(args: argparse.Namespace) -> int:
         args.out,
         options=options,
         workers=args.workers,
-        progress=not args.quiet,
+        progress=show_progress(args),
     )
     seconds = time.perf_counter() - start
-    print(f"wrote {args.n} {args.condition} instances to {path} in {seconds:.1f} s")
+    print(f"wrote {args.n} {args.condition} instances to {path} in {seconds:.1f} s",
+          file=results())
     return 0
 
 
@@ -92,11 +95,11 @@ def show_suite_command(args: argparse.Namespace) -> int:
     from o3d_spectral._extras import require_modules
 
     require_modules("this command", "matplotlib")
-    from o3d_spectral.cli import UsageError
+    from o3d_spectral.cli import UsageError, results
     from o3d_spectral.synthetic.suite import load_suite, save_instance_figure
 
     suite = load_suite(args.suite)
     if not 0 <= args.index < len(suite):
         raise UsageError(f"--index must be in [0, {len(suite) - 1}], got {args.index}")
-    print(f"wrote {save_instance_figure(suite[args.index], args.out)}")
+    print(f"wrote {save_instance_figure(suite[args.index], args.out)}", file=results())
     return 0

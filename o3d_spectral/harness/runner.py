@@ -204,7 +204,8 @@ def _execute(
     """Results rows of ``tasks`` as they complete, from single-threaded workers: a local
     process pool, or the Dask cluster at ``cluster``; ``session["workers"]`` is set to the
     number of workers."""
-    bar = require("tqdm").tqdm(total=len(tasks), desc="eval", unit="reg", disable=not progress)
+    bar = require("tqdm").tqdm(total=len(tasks), desc="eval", unit="reg",
+                               disable=None if progress else True)  # on a terminal only
     try:
         if cluster is None:
             with local_pool(workers, _init_worker, plugins) as submit:
@@ -350,7 +351,8 @@ def run_eval(
     plugins : sequence of str, optional
         Modules imported first (in every worker too), e.g. one registering more methods.
     progress : bool, optional
-        Show a tqdm progress bar.
+        Show a tqdm progress bar, when stderr is a terminal (its frames would fill a log
+        or a pipe).
 
     Returns
     -------

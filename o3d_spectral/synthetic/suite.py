@@ -110,7 +110,8 @@ def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -
     """Manifest entries of ``tasks`` (see :func:`_build`), in order, from ``workers``
     processes (this one when 1)."""
     tqdm = _extras.require("tqdm", "suite generation (its progress bar)").tqdm
-    bar = tqdm(total=len(tasks), desc=desc, unit="inst", disable=not progress)
+    bar = tqdm(total=len(tasks), desc=desc, unit="inst",
+               disable=None if progress else True)  # None: on a terminal only
     if workers == 1:
         entries = []
         for task in tasks:
@@ -155,7 +156,8 @@ def make_suite(
     workers : int, optional
         Worker processes; the output does not depend on it.
     progress : bool, optional
-        Show a tqdm progress bar.
+        Show a tqdm progress bar, when stderr is a terminal (its frames would fill a log
+        or a pipe).
 
     Returns
     -------
