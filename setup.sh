@@ -21,3 +21,5 @@ venv="${O3D_SPECTRAL_VENV:-.venv}"
 extra="harness"; [ "${1:-}" = "dev" ] && extra="dev"
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q -e ".[${extra}]"
+# Compile the numba kernels now (cached on disk), not on the first registration.
+"$venv/bin/python" -m o3d_spectral.kernels

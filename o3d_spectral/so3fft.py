@@ -10,9 +10,10 @@ Uz(gamma)`` and ``W`` the unitary change of basis in which rotations about z are
     Delta^l(beta) = W d^l(beta) W^H
 
 so one 2D inverse FFT over ``(alpha, gamma)`` per ``beta`` gives the whole grid
-(``../shared/METHOD.md``, section 7; Kostelec & Rockmore's SOFT does the same with
-complex Wigner-d). Zero-padding the FFT refines the ``alpha, gamma`` step below
-``360 / (2B - 1)`` degrees; more ``beta`` samples refine ``beta``.
+(Kostelec & Rockmore, "FFTs on the rotation group", J. Fourier Anal. Appl. 14, 2008:
+their SOFT does the same with complex Wigner-d). Zero-padding the FFT refines the
+``alpha, gamma`` step below ``360 / (2B - 1)`` degrees; more ``beta`` samples refine
+``beta``.
 
 Against a single view, :func:`visible_correlation_grid` correlates what the sensor would
 see of the turned moving EGI instead, normalised over that visible part: three such
