@@ -19,6 +19,10 @@ Groups and voxel sizes:
   ``o3d-spectral make-suite COND --n 48 --seed 0 --out DIR/COND``): the first 48 instances
   of each, 8 mm; success symmetry-aware, 5 deg and 1 cm at the source centroid
   (``harness.metrics.instance_metrics``).
+* ``crop_in_scene``: the object's points cut out of each of the first 48 cluttered views
+  by its label, at a seeded random pose, against the whole view (as a user crops an
+  object out of a depth image and registers it to the frame); success: plain errors
+  under 5 degrees and 1 cm at the crop's centroid.
 * ``wide``: one view of each of the 12 bundled models (cut out by its label) against a
   reconstructed tabletop 2 m wide holding 8 objects per square metre
   (``o3d_spectral.synthetic.wide``), 8 mm; success as the suites'.
@@ -63,10 +67,12 @@ from tqdm import tqdm  # noqa: E402
 
 import o3d_spectral  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
+from o3d_spectral.harness.errors import rotation_error, translation_error  # noqa: E402
 from o3d_spectral.harness.methods import get_method  # noqa: E402
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
+from o3d_spectral.synthetic.sampling import rigid, sample_rotation  # noqa: E402
 from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
 from o3d_spectral.synthetic.wide import wide_scene_instance  # noqa: E402
 
@@ -105,7 +111,7 @@ def fpfh_ransac(task: Task) -> tuple[np.ndarray, dict]:
 
 
 CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}
-ALL_GROUPS = (*CONDITIONS, "wide", *real.GROUPS)
+ALL_GROUPS = (*CONDITIONS, "crop_in_scene", "wide", *real.GROUPS)
 
 
 def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
@@ -134,6 +140,28 @@ def wide_tasks(limit: int) -> Iterator[Task]:
 
         yield Task("wide", f"wide_{name}", instance.source, instance.target, SUITE_VOXEL,
                    index, score)
+
+
+def crop_tasks(root: Path, limit: int) -> Iterator[Task]:
+    """The object's own points cut out of each cluttered scene view (by its label, as a
+    user crops a depth image), presented at a seeded random pose, against the whole view:
+    a view of one object in a view of a scene."""
+    suite = load_suite(root / "cluttered")
+    for index in range(min(SUITE_SIZE, limit, len(suite))):
+        instance = suite[index]
+        points = np.asarray(instance.target.points)[instance.target_labels == 0]
+        rng = np.random.default_rng(index)
+        presentation = rigid(sample_rotation(rng), rng.uniform(-0.1, 0.1, size=3))
+        source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+        source.transform(presentation)
+        truth, centre = np.linalg.inv(presentation), np.asarray(source.points).mean(axis=0)
+
+        def score(T, truth=truth, centre=centre):
+            rot, tra = rotation_error(T, truth), translation_error(T, truth, center=centre)
+            return rot, tra, bool(rot < 5.0 and tra < 0.01)
+
+        yield Task("crop_in_scene", f"crop_in_scene_{index:03d}", source, instance.target,
+                   SUITE_VOXEL, index, score)
 
 
 def real_tasks(group: str, rotations: int, limit: int) -> Iterator[Task]:
@@ -227,7 +255,7 @@ def main() -> None:
     args = parser.parse_args()
     groups = [g for g in ALL_GROUPS if g in args.groups]
     if args.suites is None:
-        groups = [g for g in groups if g not in CONDITIONS]
+        groups = [g for g in groups if g not in (*CONDITIONS, "crop_in_scene")]
 
     tasks: list[Task] = []
     for group in groups:
@@ -235,6 +263,8 @@ def main() -> None:
             tasks += suite_tasks(args.suites, group, args.limit)
         elif group == "wide":
             tasks += wide_tasks(args.limit)
+        elif group == "crop_in_scene":
+            tasks += crop_tasks(args.suites, args.limit)
         else:
             tasks += real_tasks(group, args.rotations, args.limit)
     if not tasks:

@@ -51,7 +51,8 @@ def main() -> None:
     parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
                         default=list(speed.ALL_GROUPS))
     args = parser.parse_args()
-    groups = [g for g in args.groups if args.suites is not None or g not in speed.CONDITIONS]
+    groups = [g for g in args.groups
+              if args.suites is not None or g not in (*speed.CONDITIONS, "crop_in_scene")]
 
     rows, lines, warmed = [], [], False
     for group in groups:
@@ -59,6 +60,8 @@ def main() -> None:
             tasks = list(speed.suite_tasks(args.suites, group, args.limit))
         elif group == "wide":
             tasks = list(speed.wide_tasks(args.limit))
+        elif group == "crop_in_scene":
+            tasks = list(speed.crop_tasks(args.suites, args.limit))
         else:
             tasks = list(speed.real_tasks(group, args.rotations, args.limit))
         if not warmed and tasks:  # untimed: FFT plans, caches, compiled kernels

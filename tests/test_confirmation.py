@@ -113,3 +113,22 @@ def test_each_stage_logs_its_time_at_info(drill, caplog):
 def test_confirm_must_be_a_flag():
     with pytest.raises(TypeError, match="confirm"):
         o3d_spectral.GlobalSearchOption(confirm=1)
+
+
+def test_a_crop_into_its_scene_is_searched_as_an_object_in_a_scene():
+    """The object's points cut out of a cluttered view, against the whole view: two single
+    views, but not two scans of one thing. No sweep of SO(3) over the scene, no ascent;
+    registered."""
+    instance = make_instance("cluttered", "mustard_bottle", rng=instance_rng(0, 7))
+    points = np.asarray(instance.target.points)[instance.target_labels == 0]
+    crop = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    crop, T = turned(crop, 100.0, (1.0, 1.0, 0.0), (0.05, 0.0, 0.0))
+    stepper, moving = prepared(crop, instance.target)
+    assert moving.reading.view is not None and stepper.target_reading.view is not None
+    assert not stepper.two_views(moving)
+    result = o3d_spectral.registration_spectral_global(crop, instance.target, VOXEL)
+    assert "sweep" not in result.stage_times and "ascent" not in result.stage_times
+    truth = np.linalg.inv(T)
+    centre = np.asarray(crop.points).mean(axis=0)
+    assert rotation_error(result.transformation, truth) < 2.0
+    assert translation_error(result.transformation, truth, center=centre) < 0.005
