@@ -6,7 +6,8 @@ timed once with ``time.perf_counter`` around the call only (loading, rotating an
 are outside): one untimed call of each method on the first instance warms up FFT plans and
 caches first.
 
-* spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults.
+* spectral: ``o3d_spectral.registration_spectral_global(source, target, voxel)``, defaults
+  (on one thread: ``GlobalSearchOption(workers=1)``).
 * FPFH-RANSAC: the harness's ``fpfh_ransac`` (Open3D's tutorial: FPFH + RANSAC, then
   point-to-plane ICP on the full clouds, seeded as the harness seeds it). Its ICP needs
   target normals: when the target has none (the real cases), the method estimates them
@@ -101,7 +102,9 @@ class Task:
 
 
 def spectral_global(task: Task) -> tuple[np.ndarray, dict]:
-    result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel)
+    search = o3d_spectral.GlobalSearchOption(workers=1) if ONE_THREAD else None  # or default
+    result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel,
+                                                       search=search)
     return np.asarray(result.transformation), {"confirmed": result.confirmed}
 
 
