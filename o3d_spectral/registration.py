@@ -20,7 +20,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import centring
-from ._checks import check_instance, check_number, check_transformation
+from ._checks import check_instance, check_number, check_transformation, check_voxel_size
 from .ascent import best_ascent
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
@@ -86,6 +86,7 @@ def _start(
 ) -> _Run:
     """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
     start = time.perf_counter()
+    voxel_size = check_voxel_size(voxel_size)  # type first, then value, by name
     init = check_transformation(init)
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     c, origin = centring.offset(target), None

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
-from ._checks import check_instance
+from ._checks import check_instance, check_voxel_size
 from .cloud import MIN_POINTS, CloudReading, PreparedCloud, as_arrays, extent, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
@@ -45,6 +45,9 @@ FOCUS_SHARE = 0.9
 #: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
 #: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
 MAX_HARMONICS_TABLE = 64 * 2**20
+#: Most voxels a cloud may span along an axis: a grid 2**20 voxels a side exceeds any
+#: memory, and Open3D's down-sampling fails beyond 2**31 (a voxel_size of 1e-12 m).
+MAX_VOXELS_ACROSS = 2**20
 
 
 @dataclass(frozen=True)
@@ -109,8 +112,7 @@ class SpectralStepper:
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
         frame_origin: ArrayLike | None = None,
     ) -> None:
-        if not (np.isfinite(voxel_size) and voxel_size > 0):
-            raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
+        voxel_size = check_voxel_size(voxel_size)
         check_instance("option", option, SpectralRegistrationOption)
         check_instance("cloud", cloud, CloudOption)
         self.option = option or SpectralRegistrationOption()
@@ -145,6 +147,12 @@ class SpectralStepper:
             raise ValueError(
                 f"{name} spans {extent:.4g} m, under 4 voxels of {self.voxel_size} m: use a "
                 "smaller voxel_size (check the clouds are in metres)"
+            )
+        if extent > MAX_VOXELS_ACROSS * self.voxel_size:
+            raise ValueError(
+                f"voxel_size={self.voxel_size:g} m is too small: {name} spans {extent:.4g} m, "
+                f"over {MAX_VOXELS_ACROSS} voxels (no voxel grid could hold it; check the "
+                "clouds are in metres)"
             )
         return prepare(
             arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,

@@ -89,16 +89,17 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
 
 
 def _read_init(path: Path) -> np.ndarray:
-    """The 4x4 initial transformation in the text file ``path``."""
+    """The 4x4 initial transformation in the text file ``path``, checked (and a nearly
+    rigid one made rigid) as the library checks ``init``, errors naming option and file."""
+    from o3d_spectral._checks import check_transformation
+
     if not path.is_file():
         raise FileNotFoundError(f"--init: no such file: {path}")
     try:
         init = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except ValueError as error:
         raise ValueError(f"--init {path}: not a 4x4 matrix of numbers ({error})") from None
-    if init.shape != (4, 4) or not np.all(np.isfinite(init)):
-        raise ValueError(f"--init {path}: not a finite 4x4 matrix (shape {init.shape})")
-    return init
+    return check_transformation(init, name=f"--init {path}")
 
 
 def _viewpoint(text: str) -> str | tuple[float, ...] | None:
