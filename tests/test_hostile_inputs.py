@@ -396,3 +396,59 @@ def test_complex_and_bool_points_are_refused_by_name(kind):
         warnings.simplefilter("error")
         with pytest.raises(TypeError, match=f"source.*{kind.__name__}"):
             o3d_spectral.registration_spectral(points.astype(kind), points, VOXEL)
+
+
+# ------------------------------------------------ distance from the origin, large inputs
+
+
+@pytest.mark.parametrize("distance", [50.0, 80.0])
+def test_pose_does_not_depend_on_the_distance_from_the_origin(distance):
+    """A model into a partial view of it, moved whole: the same pose (and the polish kept)
+    at 0 m and 10-100 m, where the ICP's linearisation about the origin used to throw
+    the source off the surface."""
+    from scipy.spatial.transform import Rotation
+
+    model = _model(6000)
+    view = sample_model("mustard_bottle", 6000, seed=1)
+    points, normals = np.asarray(view.points), np.asarray(view.normals)
+    keep = points[:, 0] > np.percentile(points[:, 0], 30)  # a part of it
+    motion = np.eye(4)
+    motion[:3, :3] = Rotation.from_euler("xyz", [40, -30, 70], degrees=True).as_matrix()
+    motion[:3, 3] = [0.03, -0.02, 0.05]
+    target = np.hstack([points[keep] @ motion[:3, :3].T + motion[:3, 3],
+                        normals[keep] @ motion[:3, :3].T])
+    offset = np.array([0.6, -0.48, 0.64]) * distance
+    shift = np.eye(4)
+    shift[:3, 3] = offset
+    near = o3d_spectral.registration_spectral_global(model, target, 0.008)
+    far = o3d_spectral.registration_spectral_global(
+        model + np.r_[offset, 0, 0, 0], target + np.r_[offset, 0, 0, 0], 0.008)
+    back = np.linalg.inv(shift) @ far.transformation @ shift
+    moved = [model[:, :3] @ T[:3, :3].T + T[:3, 3] for T in (near.transformation, back)]
+    assert np.max(np.linalg.norm(moved[0] - moved[1], axis=1)) < 1e-6
+    assert far.fitness == pytest.approx(near.fitness, abs=1e-9)
+
+
+def test_polish_and_score_cost_the_cells_not_the_raw_points(monkeypatch):
+    """A dense source is polished and scored one point per quarter-voxel cell; the
+    correspondence indices still point into the caller's clouds."""
+    from o3d_spectral import registration
+
+    dense = sample_model("mustard_bottle", 200_000)
+    points = np.asarray(dense.points)
+    target = points + [0.004, 0.0, 0.0]
+    seen = []
+    refine = registration.refine
+
+    def spy(source, *args):
+        seen.append(len(source.points))
+        return refine(source, *args)
+
+    monkeypatch.setattr(registration, "refine", spy)
+    result = o3d_spectral.registration_spectral(points, target, VOXEL)
+    cells = len(o3d_spectral.cloud.representatives(points, 0.25 * VOXEL))
+    assert seen == [cells] and cells < len(points) / 10
+    pairs = np.asarray(result.correspondence_set)
+    assert len(pairs) <= cells and result.fitness > 0.9
+    moved = points[pairs[:, 0]] @ result.transformation[:3, :3].T + result.transformation[:3, 3]
+    assert np.max(np.linalg.norm(moved - target[pairs[:, 1]], axis=1)) <= VOXEL
