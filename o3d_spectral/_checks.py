@@ -167,6 +167,22 @@ def check_voxel_size(value: object, name: str = "voxel_size") -> float:
     return size
 
 
+#: Most voxels a cloud may span along an axis: a grid 2**20 voxels a side exceeds any
+#: memory, and Open3D's down-sampling fails beyond 2**31 (a voxel_size of 1e-12 m).
+MAX_VOXELS_ACROSS = 2**20
+
+
+def check_voxel_span(voxel_size: float, extent: float, name: str) -> None:
+    """``ValueError`` naming ``voxel_size`` when the cloud ``name``, ``extent`` metres
+    across, would span over :data:`MAX_VOXELS_ACROSS` voxels of it."""
+    if extent > MAX_VOXELS_ACROSS * voxel_size:
+        raise ValueError(
+            f"voxel_size={voxel_size:g} m is too small: {name} spans {extent:.4g} m, over "
+            f"{MAX_VOXELS_ACROSS} voxels (no voxel grid could hold it; check the clouds "
+            "are in metres)"
+        )
+
+
 def check_point(name: str, value: object) -> tuple[float, float, float] | None:
     """``value`` must be None or three finite coordinates (metres); returns a tuple."""
     if value is None:
@@ -174,11 +190,12 @@ def check_point(name: str, value: object) -> tuple[float, float, float] | None:
     if isinstance(value, str):
         raise TypeError(f"{name} must be three coordinates in metres, got {value!r}")
     try:
-        point = np.asarray(value, dtype=np.float64)
+        point = real_array(name, value)
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be three coordinates in metres, got {value!r}") from None
+        raise TypeError(f"{name} must be three coordinates in metres, got {shown(value)}"
+                        ) from None
     if point.shape != (3,):
-        raise ValueError(f"{name} must be three coordinates in metres, got {value!r}")
+        raise ValueError(f"{name} must be three coordinates in metres, got {shown(value)}")
     if not np.all(np.isfinite(point)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(f"{name} must be finite, got {shown(value)}")
     return (float(point[0]), float(point[1]), float(point[2]))

@@ -19,7 +19,7 @@ from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
-    "MIN_POINTS", "extent", "dense_bounds", "representatives", "SCORE_CELL",
+    "MIN_POINTS", "extent", "dense_bounds",
 ]
 
 #: Fewest points (after down-sampling to the voxel size) the method accepts.
@@ -28,11 +28,6 @@ MIN_POINTS = 10
 #: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
 ISOLATED_GAP = 10.0
 ISOLATED_SHARE = 0.01
-
-#: :func:`representatives` keeps one point per cell of this many voxels for the polish
-#: and the scoring: the resolution at which the method reads the surface (its normals
-#: are estimated a quarter voxel apart), whatever the raw cloud's density.
-SCORE_CELL = 0.25
 
 logger = logging.getLogger(__name__)
 
@@ -121,22 +116,6 @@ def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
     if arrays.normals is not None:
         cloud.normals = o3d.utility.Vector3dVector(arrays.normals)
     return cloud
-
-
-def representatives(points: NDArray[np.float64], cell: float) -> NDArray[np.int64]:
-    """Indices (ascending) of one point per occupied cell of edge ``cell`` (metres) of
-    ``points`` (N, 3): the first in each cell, an actual point of the cloud (not a mean),
-    so that indices into the subset map back to the cloud. A cloud sparser than the
-    cells keeps every point; a dense one costs what its cells cost."""
-    lower = points.min(axis=0)
-    keys = np.floor((points - lower) / cell).astype(np.int64)
-    span = keys.max(axis=0) + 1
-    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one int64 per cell
-        flat = keys[:, 0] + span[0] * (keys[:, 1] + span[1] * keys[:, 2])
-        first = np.unique(flat, return_index=True)[1]
-    else:  # a cloud over ~4e6 cells a side: rows
-        first = np.unique(keys, axis=0, return_index=True)[1]
-    return np.sort(first)
 
 
 def extent(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:

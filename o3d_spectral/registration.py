@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import centring
 from ._checks import check_instance, check_number, check_transformation, check_voxel_size
 from .ascent import best_ascent
-from .cloud import SCORE_CELL, CloudArrays, as_arrays, extent, representatives, to_legacy
+from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
 from .law import Climb, climb
 from .options import (
@@ -32,7 +32,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .refinement import near_pose, refine
+from .refinement import SCORE_CELL, near_pose, refine, representatives
 from .result import SpectralRegistrationResult
 from .search import confidence, global_search
 from .stepper import MovingCloud, SpectralStepper

@@ -19,7 +19,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     they mean for Open3D's own methods: they come from
     ``open3d.pipelines.registration.evaluate_registration`` at
     :attr:`max_correspondence_distance`, measured on the clouds' points one per cell of a
-    quarter voxel (:func:`o3d_spectral.cloud.representatives`: the first point of each
+    quarter voxel (:func:`o3d_spectral.refinement.representatives`: the first point of each
     cell, so every point of a cloud sparser than that; the polish uses the same points).
     ``fitness`` is the share of those source points with a target point within the
     distance; ``correspondence_set`` holds their indices in the caller's clouds.

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
-from ._checks import check_instance, check_voxel_size
+from ._checks import check_instance, check_voxel_size, check_voxel_span
 from .cloud import MIN_POINTS, CloudReading, PreparedCloud, as_arrays, extent, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
@@ -45,9 +45,6 @@ FOCUS_SHARE = 0.9
 #: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
 #: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
 MAX_HARMONICS_TABLE = 64 * 2**20
-#: Most voxels a cloud may span along an axis: a grid 2**20 voxels a side exceeds any
-#: memory, and Open3D's down-sampling fails beyond 2**31 (a voxel_size of 1e-12 m).
-MAX_VOXELS_ACROSS = 2**20
 
 
 @dataclass(frozen=True)
@@ -148,12 +145,7 @@ class SpectralStepper:
                 f"{name} spans {extent:.4g} m, under 4 voxels of {self.voxel_size} m: use a "
                 "smaller voxel_size (check the clouds are in metres)"
             )
-        if extent > MAX_VOXELS_ACROSS * self.voxel_size:
-            raise ValueError(
-                f"voxel_size={self.voxel_size:g} m is too small: {name} spans {extent:.4g} m, "
-                f"over {MAX_VOXELS_ACROSS} voxels (no voxel grid could hold it; check the "
-                "clouds are in metres)"
-            )
+        check_voxel_span(self.voxel_size, extent, name)
         return prepare(
             arrays, self.voxel_size, egi_voxel_size=self.option.egi_voxel_size,
             normal_radius=self.cloud.normal_radius,

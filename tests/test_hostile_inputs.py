@@ -446,7 +446,7 @@ def test_polish_and_score_cost_the_cells_not_the_raw_points(monkeypatch):
 
     monkeypatch.setattr(registration, "refine", spy)
     result = o3d_spectral.registration_spectral(points, target, VOXEL)
-    cells = len(o3d_spectral.cloud.representatives(points, 0.25 * VOXEL))
+    cells = len(o3d_spectral.refinement.representatives(points, 0.25 * VOXEL))
     assert seen == [cells] and cells < len(points) / 10
     pairs = np.asarray(result.correspondence_set)
     assert len(pairs) <= cells and result.fitness > 0.9

@@ -128,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
     import open3d as o3d
 
     import o3d_spectral
+    from o3d_spectral._checks import check_voxel_size
 
+    check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
     source = _read_cloud(args.source, drop_nan=args.drop_nan)
     target = _read_cloud(args.target, drop_nan=args.drop_nan)
     init = _read_init(args.init) if args.init else None
