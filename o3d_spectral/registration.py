@@ -32,7 +32,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .refinement import SCORE_CELL, near_pose, refine, representatives
+from .refinement import near_pose, refine, representatives
 from .result import SpectralRegistrationResult
 from .search import confidence, global_search
 from .stepper import MovingCloud, SpectralStepper
@@ -120,9 +120,11 @@ def _finish(
         confidence=result.confidence if result.hypotheses else None,
     )
     voxel_size = run.stepper.voxel_size
-    # one point per cell of a quarter voxel: a dense cloud is polished and scored at the
-    # cost of its cells (a 2M-point cloud: seconds, not a minute); the indices map back
-    kept = [representatives(c.points, SCORE_CELL * voxel_size) for c in (run.source, run.target)]
+    # a dense cloud is polished and scored at the cost of its voxels (2M points: seconds,
+    # not a minute); the indices map back to the caller's points
+    kept = [representatives(c.points, voxel_size, voxels)
+            for c, voxels in ((run.source, len(run.moving.points)),
+                              (run.target, len(run.stepper.target_points)))]
     source, target = (to_legacy(_subset(c, k)) for c, k in zip((run.source, run.target), kept,
                                                                  strict=True))
     if refinement is not None:
