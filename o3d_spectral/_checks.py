@@ -110,7 +110,10 @@ def real_array(name: str, value: object) -> NDArray[np.float64]:
                    for x in array.ravel()):
             raise TypeError(f"{name} must be an array of real numbers, got "
                             f"{type(value).__qualname__} {shown(value)}")
-        array = array.astype(np.float64)
+        try:
+            array = array.astype(np.float64)
+        except OverflowError:  # an int beyond float64: not a finite number
+            raise ValueError(f"{name} must be finite, got {shown(value)}") from None
     if array.dtype.kind not in "fiu":
         kind = {"b": "bool", "c": "complex", "U": "string", "S": "bytes"}.get(
             array.dtype.kind, str(array.dtype))
