@@ -4,9 +4,9 @@ Two clouds of 2,000,000 points each, sampled uniformly (different seeds) on a sp
 0.5 m across with bumps of 10 and 5 cm (so that the rotation is defined), the second moved by
 (1, -2, 1.5) cm and turned 5 degrees; ``o3d_spectral.registration_spectral`` at 1 cm
 voxels from the identity, with the default polish. Prints the call's time, the pose
-error and the time of each stage (cProfile's cumulative seconds of the main ones).
+error and, with ``--profile``, the time of each stage (cProfile's cumulative seconds).
 
-Usage: python eval/bench_large.py [--points 2000000]
+Usage: python eval/bench_large.py [--points 2000000] [--profile]
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ def sphere(n: int, seed: int) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=2_000_000)
+    parser.add_argument("--profile", action="store_true", help="print where the time goes")
     args = parser.parse_args()
     motion = np.eye(4)
     motion[:3, :3] = Rotation.from_euler("xyz", [3, -2, 3], degrees=True).as_matrix()
@@ -43,7 +44,8 @@ def main() -> None:
     target = sphere(args.points, 1) @ motion[:3, :3].T + motion[:3, 3]
     profile = cProfile.Profile()
     start = time.perf_counter()
-    profile.enable()
+    if args.profile:
+        profile.enable()
     result = o3d_spectral.registration_spectral(source, target, 0.01)
     profile.disable()
     seconds = time.perf_counter() - start
@@ -51,6 +53,8 @@ def main() -> None:
     angle = np.degrees(np.arccos(np.clip((np.trace(E[:3, :3]) - 1) / 2, -1, 1)))
     print(f"{args.points} points: {seconds:.1f} s; error {angle:.3f} deg, "
           f"{1000 * np.linalg.norm(E[:3, 3]):.2f} mm; fitness {result.fitness:.3f}")
+    if not args.profile:
+        return
     stats = pstats.Stats(profile)
     stats.sort_stats("tottime").print_stats(8)
     for name in ("_start", "climb", "_finish", "_refined", "refine", "registration_icp",

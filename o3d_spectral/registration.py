@@ -228,7 +228,8 @@ def registration_spectral(
     ----------
     {common}
     init : array_like, shape (4, 4), optional
-        Initial source-to-target transformation (applied to the source first).
+        Initial source-to-target transformation (applied to the source first); an
+        ``open3d.core.Tensor`` too.
     option : SpectralRegistrationOption, optional
         Representation and gains.
     criteria : SpectralConvergenceCriteria, optional
@@ -252,9 +253,12 @@ def registration_spectral(
     ValueError
         For an empty cloud, too few points at this voxel size, NaN or infinite
         coordinates, a voxel size that is not positive or would need more than
-        ``option.max_grid_memory``, a non-rigid ``init`` or an array of the wrong shape.
+        ``option.max_grid_memory``, an ``init`` further than 1e-4 from rigid (nearer, it
+        is made exactly rigid) or an array of the wrong shape.
     TypeError
-        For an unsupported cloud type.
+        For an unsupported cloud type, a ``voxel_size`` that is not a real number (a
+        string, None, a bool, complex, ``Decimal``), or an ``init`` or cloud array that
+        does not hold real numbers (text, a scipy ``Rotation``, complex or bool).
 
     Examples
     --------
