@@ -78,19 +78,112 @@ def check_instance(name: str, value: object, cls: type, *, optional: bool = True
     )
 
 
+#: :func:`check_transformation`: a rotation block ``R`` with ``max |R^T R - I|`` up to this
+#: (a pose written with 5 decimals is about 1e-5 off) is re-orthonormalised; beyond it the
+#: matrix is refused.
+RIGID_TOLERANCE = 1e-4
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` on one line, cut to ``limit`` characters, for error messages."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def real_array(name: str, value: object) -> NDArray[np.float64]:
+    """``value`` as a float64 array, refused by ``name`` unless it holds real numbers.
+
+    ``TypeError`` for a string, a bool or complex array, or objects that are not real
+    numbers (numpy would read bools as 0/1 and drop an imaginary part with only a
+    warning); an Open3D tensor is read through ``.numpy()``.
+    """
+    if isinstance(value, str | bytes):
+        raise TypeError(f"{name} must be an array of real numbers, got the string {value!r}")
+    if hasattr(value, "numpy") and type(value).__module__.startswith("open3d"):
+        value = value.numpy()  # open3d.core.Tensor
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as error:  # ragged nesting
+        raise ValueError(f"{name} must be an array of real numbers ({error})") from None
+    if array.dtype.kind == "O":  # Fractions, Decimals, or anything else: each must be real
+        if not all(isinstance(x, numbers.Real) and not isinstance(x, bool | np.bool_)
+                   for x in array.ravel()):
+            raise TypeError(f"{name} must be an array of real numbers, got "
+                            f"{type(value).__qualname__} {shown(value)}")
+        try:
+            array = array.astype(np.float64)
+        except OverflowError:  # an int beyond float64: not a finite number
+            raise ValueError(f"{name} must be finite, got {shown(value)}") from None
+    if array.dtype.kind not in "fiu":
+        kind = {"b": "bool", "c": "complex", "U": "string", "S": "bytes"}.get(
+            array.dtype.kind, str(array.dtype))
+        raise TypeError(f"{name} must be an array of real numbers, got a {kind} array")
+    return np.array(array, dtype=np.float64)  # a copy: the caller's array is never touched
+
+
 def check_transformation(init: object, name: str = "init") -> NDArray[np.float64]:
-    """``init`` as a 4x4 float64 array; ``ValueError`` unless it is a finite rigid
-    transformation."""
-    M = np.asarray(init, dtype=np.float64)
+    """``init`` as a new 4x4 float64 rigid transformation.
+
+    Type first (``TypeError`` for anything but real numbers: a string, a scipy
+    ``Rotation``, a complex or bool array), then value (``ValueError`` for a shape other
+    than 4x4, a NaN or infinity, a last row other than ``0 0 0 1``, a reflection, or a
+    rotation block further than :data:`RIGID_TOLERANCE` from orthonormal). A rotation
+    block within the tolerance (a pose written with a few decimals) is replaced by the
+    nearest rotation (polar decomposition), so the pose used is exactly rigid.
+    """
+    M = real_array(name, init)
     if M.shape != (4, 4):
         raise ValueError(f"{name} must be a 4x4 matrix, got shape {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise ValueError(f"{name} must be finite, got {M.tolist()}")
+    if np.max(np.abs(M[3] - [0.0, 0.0, 0.0, 1.0])) > RIGID_TOLERANCE:
+        raise ValueError(f"{name} must be a rigid transformation: its last row must be "
+                         f"0 0 0 1, got {M[3].tolist()}")
     R = M[:3, :3]
-    finite = bool(np.all(np.isfinite(M)))
-    rigid = finite and np.allclose(R.T @ R, np.eye(3), atol=1e-6) and abs(
-        np.linalg.det(R) - 1.0) < 1e-6 and np.allclose(M[3], [0.0, 0.0, 0.0, 1.0])
-    if not rigid:
-        raise ValueError(f"{name} must be a finite rigid transformation (rotation + translation)")
+    deviation = float(np.max(np.abs(R.T @ R - np.eye(3))))
+    if deviation > RIGID_TOLERANCE or np.linalg.det(R) <= 0.0:
+        what = "a reflection" if np.linalg.det(R) <= 0.0 else f"{deviation:.2g} from orthonormal"
+        raise ValueError(f"{name} must be a rigid transformation (rotation + translation): "
+                         f"its rotation block is {what} (tolerance {RIGID_TOLERANCE:g})")
+    U, _, Vt = np.linalg.svd(R)
+    M[:3, :3] = U @ Vt  # det > 0 and near-orthonormal: the nearest rotation
+    M[3] = [0.0, 0.0, 0.0, 1.0]
     return M
+
+
+def check_voxel_size(value: object, name: str = "voxel_size") -> float:
+    """``value`` as a float: a real number (not a bool), finite and positive, metres.
+
+    ``TypeError`` for any other type (a string, None, a list, complex, ``Decimal``);
+    ``ValueError`` for NaN, infinity, zero or a negative number. (Too small for the
+    clouds is refused where their size is known: :class:`o3d_spectral.SpectralStepper`.)
+    """
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number of metres (int or float), got "
+                        f"{type(value).__qualname__} {shown(value)}")
+    try:
+        size = float(value)
+    except OverflowError:
+        size = float("inf")
+    if not (np.isfinite(size) and size > 0.0):
+        raise ValueError(f"{name} must be a positive number of metres (finite), got {shown(value)}")
+    return size
+
+
+#: Most voxels a cloud may span along an axis: a grid 2**20 voxels a side exceeds any
+#: memory, and Open3D's down-sampling fails beyond 2**31 (a voxel_size of 1e-12 m).
+MAX_VOXELS_ACROSS = 2**20
+
+
+def check_voxel_span(voxel_size: float, extent: float, name: str) -> None:
+    """``ValueError`` naming ``voxel_size`` when the cloud ``name``, ``extent`` metres
+    across, would span over :data:`MAX_VOXELS_ACROSS` voxels of it."""
+    if extent > MAX_VOXELS_ACROSS * voxel_size:
+        raise ValueError(
+            f"voxel_size={voxel_size:g} m is too small: {name} spans {extent:.4g} m, over "
+            f"{MAX_VOXELS_ACROSS} voxels (no voxel grid could hold it; check the clouds "
+            "are in metres)"
+        )
 
 
 def check_point(name: str, value: object) -> tuple[float, float, float] | None:
@@ -100,11 +193,12 @@ def check_point(name: str, value: object) -> tuple[float, float, float] | None:
     if isinstance(value, str):
         raise TypeError(f"{name} must be three coordinates in metres, got {value!r}")
     try:
-        point = np.asarray(value, dtype=np.float64)
+        point = real_array(name, value)
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be three coordinates in metres, got {value!r}") from None
+        raise TypeError(f"{name} must be three coordinates in metres, got {shown(value)}"
+                        ) from None
     if point.shape != (3,):
-        raise ValueError(f"{name} must be three coordinates in metres, got {value!r}")
+        raise ValueError(f"{name} must be three coordinates in metres, got {shown(value)}")
     if not np.all(np.isfinite(point)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(f"{name} must be finite, got {shown(value)}")
     return (float(point[0]), float(point[1]), float(point[2]))

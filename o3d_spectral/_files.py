@@ -172,12 +172,28 @@ def check_finite(
     return finite
 
 
+def _umask() -> int:
+    """The process's umask (read from ``/proc`` where it is shown, else set and restored:
+    ``os.umask`` can only be read by setting it)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Replace ``path`` by ``text`` at once: written to a temporary file in the same
-    folder, then renamed over it, so a kill leaves the old file or the new, never half."""
+    folder, then renamed over it, so a kill leaves the old file or the new, never half.
+    The file gets the permissions any new file gets (0666 less the caller's umask)."""
     path = Path(path)
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.chmod(handle, 0o666 & ~_umask())  # mkstemp's 0600 would outlive the rename
         with os.fdopen(handle, "w") as file:
             file.write(text)
             file.flush()

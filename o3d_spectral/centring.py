@@ -1,11 +1,14 @@
-"""Clouds far from the origin are registered in a frame centred on the target.
+"""Clouds are registered in a frame centred on the target, wherever they lie.
 
-Georeferenced clouds (UTM coordinates, hundreds of kilometres from the origin) make the
-ICP polish's normal equations ill-conditioned and waste the precision of every
-coordinate. The calls move both clouds by minus the target's centroid when it lies over
-``CENTRE_DISTANCE`` from the origin, register them there, and express every result in the
-caller's frame again. Nearer clouds are registered as given (the origin of a scan in its
-sensor's frame means something: the sensor).
+The calls move both clouds by minus the target's centroid, register them there, and
+express every result in the caller's frame again, so that the result does not depend on
+where the caller's frame has its origin: the voxel grids' lattice
+(:class:`o3d_spectral.target_grid.TargetGrid` aligns it to multiples of the voxel size)
+then sits in the same place on the clouds whether they are 1 m or 1000 km from the
+origin, and georeferenced coordinates (UTM, hundreds of kilometres) lose no precision.
+What the origin of the caller's frame means (the sensor of a scan in its sensor's frame)
+is kept: the stepper is told where it went (``frame_origin``), and sensor positions
+given in options are moved with the clouds.
 """
 
 from __future__ import annotations
@@ -22,12 +25,14 @@ from .options import CloudOption
 __all__ = ["CENTRE_DISTANCE", "offset", "shifted", "centred_arrays", "centred_option",
            "uncentred_history"]
 
-#: Targets whose centroid lies farther than this from the origin (metres) are centred.
-CENTRE_DISTANCE = 100.0
+#: Targets whose centroid lies farther than this from the origin (metres) are centred:
+#: all of them (a registration must not depend on where the frame's origin is).
+CENTRE_DISTANCE = 0.0
 
 
 def offset(target: CloudArrays) -> NDArray[np.float64] | None:
-    """The target's centroid when over ``CENTRE_DISTANCE`` from the origin, else None."""
+    """The target's centroid when over ``CENTRE_DISTANCE`` from the origin, else None
+    (only a target centred exactly on the origin already)."""
     centroid = target.points.mean(axis=0)
     return centroid if np.linalg.norm(centroid) > CENTRE_DISTANCE else None
 

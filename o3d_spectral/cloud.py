@@ -13,6 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
+from ._checks import real_array
 from .normals import faces, orient, view_direction
 from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
@@ -76,14 +77,14 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
     elif isinstance(cloud, o3d.t.geometry.PointCloud):
         if "positions" not in cloud.point:
             raise ValueError(f"{name}: the tensor point cloud has no 'positions'")
-        points = cloud.point.positions.numpy().astype(np.float64).reshape(-1, 3)
+        points = real_array(f"{name} positions", cloud.point.positions).reshape(-1, 3)
         normals = (
-            cloud.point.normals.numpy().astype(np.float64).reshape(-1, 3)
+            real_array(f"{name} normals", cloud.point.normals).reshape(-1, 3)
             if "normals" in cloud.point
             else None
         )
     elif isinstance(cloud, np.ndarray | list | tuple):
-        array = np.array(cloud, dtype=np.float64)
+        array = real_array(name, cloud)  # a copy; bool, complex or text refused
         if array.ndim != 2 or array.shape[1] not in (3, 6):
             raise ValueError(
                 f"{name}: a numpy cloud must have shape (N, 3) or (N, 6), got {array.shape}"

@@ -4,8 +4,9 @@ Registering one model to many scans (pose estimation over a sequence, a robot th
 for the same part in every capture) repeats the source's preparation on every call: its
 down-sampling, its normals (estimated, and their signs chosen, when it has none) and the
 cells its EGI is made from. :func:`prepare` does it once; both registration calls accept
-the :class:`PreparedSource` in place of the source and give the same result, to the bit,
-as with the cloud itself::
+the :class:`PreparedSource` in place of the source and give the same result as with the
+cloud itself, to rounding (the calls work in a frame centred on the target, into which
+the prepared cloud is moved)::
 
     model = o3d_spectral.prepare(model_cloud, voxel_size=0.008)
     for scan in scans:

@@ -20,7 +20,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import centring, confirmation
-from ._checks import check_instance, check_number, check_transformation
+from ._checks import check_instance, check_number, check_transformation, check_voxel_size
 from .ascent import best_ascent
 from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
@@ -33,7 +33,7 @@ from .options import (
     SpectralRegistrationOption,
 )
 from .prepared import PreparedSource
-from .refinement import near_pose, refine
+from .refinement import near_pose, refine, representatives
 from .result import SpectralRegistrationResult
 from .search import climbed, confidence, ranked_hypotheses, sweeps
 from .stages import StageClock
@@ -88,6 +88,7 @@ def _start(
 ) -> _Run:
     """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
     start = time.perf_counter()
+    voxel_size = check_voxel_size(voxel_size)  # type first, then value, by name
     init = check_transformation(init)
     ready = source if isinstance(source, PreparedSource) else None
     if ready is not None:
@@ -126,8 +127,14 @@ def _finish(
         readings={"source": result.source_reading, "target": result.target_reading},
         confidence=result.confidence if result.hypotheses else None,
     )
-    source, target = to_legacy(run.source), to_legacy(run.target)  # once, for both
     voxel_size = run.stepper.voxel_size
+    # a dense cloud is polished and scored at the cost of its voxels (2M points: seconds,
+    # not a minute); the indices map back to the caller's points
+    kept = [representatives(c.points, voxel_size, voxels)
+            for c, voxels in ((run.source, len(run.moving.points)),
+                              (run.target, len(run.stepper.target_points)))]
+    source, target = (to_legacy(_subset(c, k)) for c, k in zip((run.source, run.target), kept,
+                                                                 strict=True))
     if refinement is not None:
         transformation = _refined(run, source, target, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
@@ -140,7 +147,8 @@ def _finish(
             source, near, distance, transformation
         )
         pairs = np.asarray(evaluation.correspondence_set)
-        pairs[:, 1] = indices[pairs[:, 1]]  # back to the whole target's indices
+        pairs[:, 0] = kept[0][pairs[:, 0]]  # back to the caller's source indices
+        pairs[:, 1] = kept[1][indices[pairs[:, 1]]]  # and the whole target's
         result.fitness = evaluation.fitness
         result.inlier_rmse = evaluation.inlier_rmse
         result.correspondence_set = o3d.utility.Vector2iVector(pairs)
@@ -151,6 +159,14 @@ def _finish(
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
+
+
+def _subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:
+    """The points (and normals) of ``arrays`` at ``keep``; ``arrays`` itself if all."""
+    if len(keep) == len(arrays.points):
+        return arrays
+    normals = None if arrays.normals is None else arrays.normals[keep]
+    return CloudArrays(arrays.points[keep], normals)
 
 
 def _refined(
@@ -222,7 +238,8 @@ def registration_spectral(
     ----------
     {common}
     init : array_like, shape (4, 4), optional
-        Initial source-to-target transformation (applied to the source first).
+        Initial source-to-target transformation (applied to the source first); an
+        ``open3d.core.Tensor`` too.
     option : SpectralRegistrationOption, optional
         Representation and gains.
     criteria : SpectralConvergenceCriteria, optional
@@ -246,9 +263,12 @@ def registration_spectral(
     ValueError
         For an empty cloud, too few points at this voxel size, NaN or infinite
         coordinates, a voxel size that is not positive or would need more than
-        ``option.max_grid_memory``, a non-rigid ``init`` or an array of the wrong shape.
+        ``option.max_grid_memory``, an ``init`` further than 1e-4 from rigid (nearer, it
+        is made exactly rigid) or an array of the wrong shape.
     TypeError
-        For an unsupported cloud type.
+        For an unsupported cloud type, a ``voxel_size`` that is not a real number (a
+        string, None, a bool, complex, ``Decimal``), or an ``init`` or cloud array that
+        does not hold real numbers (text, a scipy ``Rotation``, complex or bool).
 
     Examples
     --------

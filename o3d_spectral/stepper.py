@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
-from ._checks import check_instance
+from ._checks import check_instance, check_voxel_size, check_voxel_span
 from .cloud import MIN_POINTS, CloudReading, PreparedCloud, as_arrays, extent, prepare
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
@@ -98,6 +98,7 @@ def prepared_cloud(
             f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "
             "smaller voxel_size (check the clouds are in metres)"
         )
+    check_voxel_span(voxel_size, extent, name)
     return prepare(
         arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
         camera_location=camera_location, origin=origin, name=name,
@@ -129,8 +130,7 @@ class SpectralStepper:
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
         frame_origin: ArrayLike | None = None,
     ) -> None:
-        if not (np.isfinite(voxel_size) and voxel_size > 0):
-            raise ValueError(f"voxel_size must be a positive number of metres, got {voxel_size}")
+        voxel_size = check_voxel_size(voxel_size)
         check_instance("option", option, SpectralRegistrationOption)
         check_instance("cloud", cloud, CloudOption)
         self.option = option or SpectralRegistrationOption()

@@ -124,3 +124,27 @@ def test_demo_writes_plot_and_result(tmp_path, capsys):
     assert result["rotation_error_deg"] < 5.0
     assert result["convergence_plot"] == str(tmp_path / "convergence.png")
     assert f"{result['law_rotation_error_deg']:.2f} deg at the law's last iteration" in out
+
+
+def test_register_init_and_voxel_size_errors_name_the_option_and_file(tmp_path, capsys):
+    """A pose written with 5 decimals is taken (made rigid); a sheared one is refused
+    naming --init and its file; a NaN voxel size names --voxel-size."""
+    from scipy.spatial.transform import Rotation
+
+    source = sample_model("mustard_bottle", 3000)
+    o3d.io.write_point_cloud(str(tmp_path / "source.ply"), source)
+    init = np.eye(4)
+    init[:3, :3] = Rotation.from_euler("xyz", [3, -2, 4], degrees=True).as_matrix()
+    path = tmp_path / "init.txt"
+    np.savetxt(path, init, fmt="%.5f")
+    args = ["register", str(tmp_path / "source.ply"), str(tmp_path / "source.ply"),
+            "--voxel-size", "0.008", "--init", str(path), "--max-iteration", "3"]
+    assert main(args) == 0
+    capsys.readouterr()
+    init[0, 1] += 0.01
+    np.savetxt(path, init, fmt="%.5f")
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert f"--init {path}" in err and "rigid" in err and len(err.splitlines()) == 1
+    assert main([*args[:3], "--voxel-size", "nan"]) == 1
+    assert "--voxel-size" in capsys.readouterr().err

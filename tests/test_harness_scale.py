@@ -247,3 +247,75 @@ def test_a_missing_peer_says_how_to_install(monkeypatch):
     monkeypatch.setitem(methods.UNAVAILABLE, "not_here", "the not-here package: pip install x")
     with pytest.raises(ValueError, match="not-here package"):
         get_method("not_here")
+
+
+# ------------------------------------------------------------- killed or interrupted
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every live process started by ``pid``, at any depth (Linux ``/proc``)."""
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = (task / "children").read_text().split()
+            except OSError:
+                continue
+            for child in map(int, children):
+                if child not in found:
+                    found.add(child)
+                    todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    return "\nState:\tZ" not in status  # a zombie has ended (only not yet reaped)
+
+
+def _eval_with_workers(suite_dir, out) -> tuple[subprocess.Popen, set[int]]:
+    """``o3d-spectral eval`` with two workers, once both have started; and its processes."""
+    root = str(Path(o3d_spectral.__file__).resolve().parents[1])
+    env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    command = [sys.executable, "-m", "o3d_spectral.cli", "eval", "--suite", str(suite_dir),
+               "--out", str(out), "--quiet", "--workers", "2", "--methods", "spectral_global",
+               "fpfh_ransac"]
+    run = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while len(_descendants(run.pid)) < 3 and time.monotonic() < deadline:  # tracker + 2
+        time.sleep(0.2)
+    time.sleep(3.0)  # the workers import and take their first tasks
+    processes = _descendants(run.pid)
+    assert len(processes) >= 3, processes
+    return run, processes
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
+    run, processes = _eval_with_workers(suite_dir, tmp_path)
+    run.kill()  # SIGKILL: no handler of the parent runs
+    run.wait(timeout=10)
+    deadline = time.monotonic() + 5.0
+    while any(map(_alive, processes)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [pid for pid in processes if _alive(pid)]
+    for pid in left:  # do not leave them to the next test either
+        os.kill(pid, 9)
+    assert not left, f"{len(left)} of {len(processes)} processes outlived the killed eval"
+    run.stderr.read()  # a reader of its stderr is not kept waiting
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_interrupted_eval_stops_with_one_line_and_status_130(suite_dir, tmp_path):
+    run, processes = _eval_with_workers(suite_dir, tmp_path)
+    os.killpg(run.pid, 2)  # Ctrl-C: the terminal signals the whole process group
+    _, stderr = run.communicate(timeout=30)
+    assert run.returncode == 130
+    assert len(stderr.strip().splitlines()) == 1 and "interrupted" in stderr, stderr
+    time.sleep(1.0)
+    assert not [pid for pid in processes if _alive(pid)]

@@ -370,3 +370,16 @@ def test_corrupt_session_files_are_named(tmp_path):
     (tmp_path / "config.json").write_text('{"suites": 1}')
     with pytest.raises(ValueError, match="config.json is not a run's config"):
         read_config(tmp_path)
+
+
+def test_files_are_created_with_the_callers_umask(tmp_path):
+    import os
+
+    from o3d_spectral._files import atomic_write_text
+
+    saved = os.umask(0o027)
+    try:
+        atomic_write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(saved)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o640

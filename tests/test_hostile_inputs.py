@@ -9,7 +9,11 @@ same call gives the same result twice.
 """
 
 import dataclasses
+import decimal
+import fractions
 import math
+import numbers
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -26,6 +30,7 @@ from o3d_spectral import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
+from o3d_spectral._checks import check_transformation
 from tests.conftest import sample_model
 
 OPTION_CLASSES = [SpectralRegistrationOption, CloudOption, GlobalSearchOption,
@@ -271,3 +276,180 @@ def test_global_search_grid_stays_within_max_grid_memory():
     o3d_spectral.registration_spectral(points, points, VOXEL, option=option)
     with pytest.raises(ValueError, match="max_grid_memory"):  # 64^3 complex: 4 MiB
         o3d_spectral.registration_spectral_global(points, points, VOXEL, option)
+
+
+# ------------------------------------------------ voxel_size and init of any Python type
+
+
+_ANY_OBJECT = st.one_of(
+    _ANY_VALUE, st.decimals(allow_nan=True), st.fractions(), st.complex_numbers(),
+    st.floats(min_value=0.0, max_value=1e-9), st.just(1e-300), st.just(10**400),
+    st.sampled_from([np.float32(0.02), np.float16(0.02), np.int8(1)]), st.just(np.bool_(True)),
+    st.builds(np.array, st.lists(st.floats(), max_size=3)),
+)
+
+
+@st.composite
+def _inits(draw):
+    """4x4 things of every type near a pose, and things that are not 4x4 at all."""
+    from scipy.spatial.transform import Rotation
+
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_rotvec(draw(st.tuples(*[st.floats(-0.2, 0.2)] * 3))).as_matrix()
+    pose[:3, 3] = draw(st.tuples(*[st.floats(-0.02, 0.02)] * 3))
+    noise = draw(st.sampled_from([0.0, 1e-7, 1e-5, 1e-3, 0.1]))
+    noisy = pose + noise * np.random.default_rng(draw(st.integers(0, 99))).normal(size=(4, 4))
+    noisy[3] = pose[3]
+    return draw(st.one_of(
+        st.just(pose), st.just(noisy), st.just(np.round(pose, draw(st.integers(3, 8)))),
+        st.just(pose.tolist()), st.just(pose.astype(np.float32)), st.just(pose.astype(complex)),
+        st.just(pose.astype(bool)), st.just(pose[:3]), st.just(np.diag([1.0, 1.0, -1.0, 1.0])),
+        st.just(o3d.core.Tensor(pose)), st.just(Rotation.from_matrix(pose[:3, :3])),
+        st.just([[str(x) for x in row] for row in pose]), st.just("eye"),
+        st.just([[fractions.Fraction(x) for x in row] for row in pose]),
+        _ANY_OBJECT,
+    ))
+
+
+_SMALL = None
+
+
+def _small_pair():
+    global _SMALL
+    if _SMALL is None:
+        _SMALL = _model(1500)
+    return _SMALL
+
+
+def _registers_or_names(name, **arguments):
+    """The local call either returns a finite rigid pose or raises TypeError / ValueError
+    naming ``name``; never a warning, never another error."""
+    source = _small_pair()
+    target = source + [0.005, 0.0, 0.0, 0.0, 0.0, 0.0]
+    kept = source.copy()
+    arguments = {"voxel_size": VOXEL, "init": np.eye(4)} | arguments
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's ComplexWarning, a DeprecationWarning...
+        try:
+            result = o3d_spectral.registration_spectral(
+                source, target, arguments["voxel_size"], arguments["init"],
+                criteria=SpectralConvergenceCriteria(max_iteration=3), refinement=None)
+        except (TypeError, ValueError) as error:
+            assert name in str(error), error
+            assert "\x1b" not in str(error)  # no terminal colour codes from Open3D
+            event(type(error).__name__)
+            return None
+    np.testing.assert_array_equal(source, kept)
+    assert_rigid(result.transformation)
+    event("registered")
+    return result
+
+
+@settings(max_examples=60, deadline=None)
+@example(voxel_size="0.02")
+@example(voxel_size=None)
+@example(voxel_size=[0.02])
+@example(voxel_size=0.02 + 0j)
+@example(voxel_size=decimal.Decimal("0.02"))
+@example(voxel_size=fractions.Fraction(1, 50))
+@example(voxel_size=1e-12)
+@example(voxel_size=1e-300)
+@example(voxel_size=True)
+@given(voxel_size=_ANY_OBJECT)
+def test_voxel_size_of_any_type_registers_or_is_refused_by_name(voxel_size):
+    result = _registers_or_names("voxel_size", voxel_size=voxel_size)
+    if result is not None:  # only real numbers (not bools) are taken
+        assert isinstance(voxel_size, numbers.Real) and not isinstance(voxel_size, bool | np.bool_)
+
+
+@settings(max_examples=60, deadline=None)
+@given(init=_inits())
+def test_init_of_any_type_registers_or_is_refused_by_name(init):
+    _registers_or_names("init", init=init)
+
+
+def test_near_rigid_init_is_made_rigid_and_far_from_rigid_refused():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):  # a pose written with 5 decimals is used, exactly rigid
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        M = check_transformation(np.round(pose, 5))
+        assert_rigid(M)
+        np.testing.assert_allclose(M, pose, atol=1e-5)
+    sheared = np.eye(4)
+    sheared[0, 1] = 1e-3
+    with pytest.raises(ValueError, match=r"init .*rigid.*tolerance"):
+        check_transformation(sheared)
+    with pytest.raises(TypeError, match="init"):
+        check_transformation("eye")
+    with pytest.raises(TypeError, match="init"):
+        check_transformation(Rotation.identity())
+    np.testing.assert_array_equal(check_transformation(o3d.core.Tensor(np.eye(4))), np.eye(4))
+
+
+@pytest.mark.parametrize("kind", [complex, bool])
+def test_complex_and_bool_points_are_refused_by_name(kind):
+    points = _model(500, normals=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(TypeError, match=f"source.*{kind.__name__}"):
+            o3d_spectral.registration_spectral(points.astype(kind), points, VOXEL)
+
+
+# ------------------------------------------------ distance from the origin, large inputs
+
+
+@pytest.mark.parametrize("distance", [50.0, 80.0])
+def test_pose_does_not_depend_on_the_distance_from_the_origin(distance):
+    """A model into a partial view of it, moved whole: the same pose (and the polish kept)
+    at 0 m and 10-100 m, where the ICP's linearisation about the origin used to throw
+    the source off the surface."""
+    from scipy.spatial.transform import Rotation
+
+    model = _model(6000)
+    view = sample_model("mustard_bottle", 6000, seed=1)
+    points, normals = np.asarray(view.points), np.asarray(view.normals)
+    keep = points[:, 0] > np.percentile(points[:, 0], 30)  # a part of it
+    motion = np.eye(4)
+    motion[:3, :3] = Rotation.from_euler("xyz", [40, -30, 70], degrees=True).as_matrix()
+    motion[:3, 3] = [0.03, -0.02, 0.05]
+    target = np.hstack([points[keep] @ motion[:3, :3].T + motion[:3, 3],
+                        normals[keep] @ motion[:3, :3].T])
+    offset = np.array([0.6, -0.48, 0.64]) * distance
+    shift = np.eye(4)
+    shift[:3, 3] = offset
+    near = o3d_spectral.registration_spectral_global(model, target, 0.008)
+    far = o3d_spectral.registration_spectral_global(
+        model + np.r_[offset, 0, 0, 0], target + np.r_[offset, 0, 0, 0], 0.008)
+    back = np.linalg.inv(shift) @ far.transformation @ shift
+    moved = [model[:, :3] @ T[:3, :3].T + T[:3, 3] for T in (near.transformation, back)]
+    assert np.max(np.linalg.norm(moved[0] - moved[1], axis=1)) < 1e-6
+    assert far.fitness == pytest.approx(near.fitness, abs=1e-9)
+
+
+def test_polish_and_score_cost_the_cells_not_the_raw_points(monkeypatch):
+    """A dense source (200k points, about 300 per 2 cm voxel) is polished and scored one
+    point per quarter-voxel cell; the correspondence indices still point into the
+    caller's clouds."""
+    from o3d_spectral import registration
+
+    dense = sample_model("mustard_bottle", 200_000)
+    points = np.asarray(dense.points)
+    target = points + [0.004, 0.0, 0.0]
+    seen = []
+    refine = registration.refine
+
+    def spy(source, *args):
+        seen.append(len(source.points))
+        return refine(source, *args)
+
+    monkeypatch.setattr(registration, "refine", spy)
+    result = o3d_spectral.registration_spectral(points, target, VOXEL)
+    cells = len(np.unique(np.floor((points - points.min(axis=0)) / (0.25 * VOXEL)), axis=0))
+    assert seen == [cells] and cells < len(points) / 10
+    pairs = np.asarray(result.correspondence_set)
+    assert len(pairs) <= cells and result.fitness > 0.9
+    moved = points[pairs[:, 0]] @ result.transformation[:3, :3].T + result.transformation[:3, 3]
+    assert np.max(np.linalg.norm(moved - target[pairs[:, 1]], axis=1)) <= VOXEL

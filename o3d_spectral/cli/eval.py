@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 EXAMPLES = (
     "examples:\n"
@@ -147,22 +148,27 @@ def eval_command(args: argparse.Namespace) -> int:
             raise UsageError(str(error)) from None
 
     start = time.perf_counter()
-    table = run_eval(
-        args.suite,
-        args.out,
-        methods=args.methods,
-        workers=args.workers,
-        voxel_size=args.voxel_size,
-        seed=args.seed,
-        limit=args.limit,
-        sample=args.sample,
-        shard=args.shard,
-        cluster=args.cluster,
-        criteria=SuccessCriteria(
-            max_rotation_deg=args.max_rotation_deg, max_translation_m=args.max_translation
-        ),
-        plugins=args.plugin,
-        progress=show_progress(args),
-    )
+    try:
+        table = run_eval(
+            args.suite,
+            args.out,
+            methods=args.methods,
+            workers=args.workers,
+            voxel_size=args.voxel_size,
+            seed=args.seed,
+            limit=args.limit,
+            sample=args.sample,
+            shard=args.shard,
+            cluster=args.cluster,
+            criteria=SuccessCriteria(
+                max_rotation_deg=args.max_rotation_deg, max_translation_m=args.max_translation
+            ),
+            plugins=args.plugin,
+            progress=show_progress(args),
+        )
+    except KeyboardInterrupt:  # Ctrl-C: a clean stop (the pool's workers are ended)
+        print(f"o3d-spectral eval: interrupted; the rows done so far stay in {args.out} "
+              "(run the same command again to resume)", file=sys.stderr)
+        return 130
     print(f"wrote {table} in {time.perf_counter() - start:.1f} s", file=results())
     return 0

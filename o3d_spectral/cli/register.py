@@ -140,7 +140,10 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
 
 
 def _read_init(path: Path) -> np.ndarray:
-    """The 4x4 initial transformation in the text file ``path``."""
+    """The 4x4 initial transformation in the text file ``path``, checked (and a nearly
+    rigid one made rigid) as the library checks ``init``, errors naming option and file."""
+    from o3d_spectral._checks import check_transformation
+
     if not path.is_file():
         raise FileNotFoundError(f"--init: no such file: {path}")
     try:
@@ -156,7 +159,7 @@ def _read_init(path: Path) -> np.ndarray:
         more = f" and {len(bad) - 4} more" if len(bad) > 4 else ""
         raise ValueError(f"--init {path}: {len(bad)} of its 16 numbers are not finite "
                          f"(NaN or infinite): {where}{more}")
-    return init
+    return check_transformation(init, name=f"--init {path}")
 
 
 def _check_save(path: Path) -> None:
@@ -232,8 +235,10 @@ def run(args: argparse.Namespace) -> int:
     import open3d as o3d
 
     import o3d_spectral
+    from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import results
 
+    check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
     if args.save:
         _check_save(args.save)
     init = _read_init(args.init) if args.init else None

@@ -15,8 +15,14 @@ paths.
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import importlib
 import logging
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
@@ -27,6 +33,9 @@ from o3d_spectral import _extras
 __all__ = ["SINGLE_THREAD", "dask_cluster", "local_pool", "require_distributed"]
 
 SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: How often (seconds) a pool worker checks that the process that started it is alive.
+PARENT_POLL = 0.5
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def require_distributed():
@@ -49,19 +58,67 @@ def _single_threaded_children() -> Iterator[None]:
                 os.environ[name] = value
 
 
+def _end_with_parent(parent: int) -> None:
+    """Make this worker process end when the process ``parent`` ends, however it ends.
+
+    A killed parent (SIGKILL) cannot stop its workers, and a spawned worker otherwise
+    outlives it, holding its memory and the pipe of multiprocessing's resource tracker
+    (which then outlives it too). On Linux the kernel sends this process SIGKILL when the
+    parent dies (``prctl(PR_SET_PDEATHSIG)``); everywhere, a daemon thread sees the parent
+    change (``os.getppid()``) within :data:`PARENT_POLL` seconds and exits.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):  # no libc by that name: the thread suffices
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def _pool_worker(parent: int, initializer: tuple[str, str], plugins: tuple[str, ...]) -> None:
+    """A pool worker's set-up: ended with its parent, deaf to Ctrl-C (the terminal sends
+    SIGINT to the whole process group; the parent alone decides, and ends the workers),
+    then ``initializer(plugins)``, named (module, function) so that its module's imports
+    (seconds: Open3D, the methods) come after the worker watches its parent."""
+    _end_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    module, name = initializer
+    getattr(importlib.import_module(module), name)(plugins)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """End the pool's worker processes now (an interrupt: their tasks are abandoned)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(timeout=5)
+            if process.is_alive():
+                process.kill()
+
+
 @contextlib.contextmanager
 def local_pool(
     workers: int, initializer: Callable, plugins: tuple[str, ...]
 ) -> Iterator[Callable[[Callable, Sequence], Iterator[dict]]]:
     """A pool of ``workers`` spawned single-threaded processes (each calls
     ``initializer(plugins)`` first); yields ``submit(run, tasks)``, an iterator of the rows
-    of ``run(task)`` as they complete. Queued tasks are dropped on an interrupt."""
+    of ``run(task)`` as they complete. The workers end with this process, even killed
+    (:func:`_end_with_parent`), and ignore Ctrl-C; on an interrupt or any error the
+    queued tasks are dropped and the workers ended at once."""
     with _single_threaded_children():
         pool = ProcessPoolExecutor(
             max_workers=workers,
             mp_context=get_context("spawn"),
-            initializer=initializer,
-            initargs=(plugins,),
+            initializer=_pool_worker,
+            initargs=(os.getpid(), (initializer.__module__, initializer.__qualname__), plugins),
         )
 
     def submit(run: Callable, tasks: Sequence) -> Iterator[dict]:
@@ -70,8 +127,10 @@ def local_pool(
 
     try:
         yield submit
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    except BaseException:
+        _terminate(pool)
+        raise
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _client(distributed, address: str, workers: int):

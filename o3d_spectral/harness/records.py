@@ -260,7 +260,8 @@ def open_results(out: Path, session: str) -> Iterator[int]:
     :func:`append_row`)."""
     folder = out / RESULTS_DIR
     folder.mkdir(parents=True, exist_ok=True)
-    descriptor = os.open(folder / f"{session}.jsonl", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    descriptor = os.open(folder / f"{session}.jsonl", os.O_WRONLY | os.O_CREAT | os.O_APPEND,
+                         0o666)  # less the caller's umask
     try:
         yield descriptor
     finally:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from o3d_spectral._checks import check_voxel_size
 from o3d_spectral.harness._optional import require
 from o3d_spectral.harness.executors import dask_cluster, local_pool
 from o3d_spectral.harness.methods import get_method, method_names, method_settings
@@ -239,8 +240,7 @@ def _inputs(
         raise ValueError("suites must name at least one suite folder")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
-    if not voxel_size > 0:
-        raise ValueError(f"voxel_size must be positive (metres), got {voxel_size}")
+    check_voxel_size(voxel_size)
     for name in ("limit", "sample"):
         value = getattr(selection, name)
         if value is not None and value < 1:
