@@ -62,7 +62,7 @@ def main() -> None:
         return
     stats = pstats.Stats(profile)
     stats.sort_stats("tottime").print_stats(8)
-    for name in ("_start", "climb", "_finish", "_refined", "refine", "registration_icp",
+    for name in ("start", "climb", "finish", "refined", "refine", "registration_icp",
                  "evaluate_registration", "representatives"):
         total = sum(v[3] for k, v in stats.stats.items() if k[2] == name)
         print(f"  {name:24s} {total:6.1f} s")

@@ -19,14 +19,35 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from ._checks import check_instance, check_number
+from ._checks import check_instance, check_number, check_voxel_span
 from .cloud import CloudArrays, PreparedCloud, as_arrays
+from .cloud import prepare as prepare_arrays
 from .options import CloudOption, SpectralRegistrationOption
-from .stepper import prepared_cloud
 
-__all__ = ["PreparedSource", "prepare"]
+__all__ = ["PreparedSource", "prepare", "prepared_cloud"]
+
+
+def prepared_cloud(
+    cloud: object, voxel_size: float, *, egi_voxel_size: float | None,
+    normal_radius: float | None, camera_location: ArrayLike | None, origin: ArrayLike,
+    name: str,
+) -> PreparedCloud:
+    """``cloud`` checked (it must span 4 voxels) and prepared
+    (:func:`o3d_spectral.cloud.prepare`, whose arguments these are)."""
+    arrays = as_arrays(cloud, name)
+    extent = float(np.max(np.ptp(arrays.points, axis=0)))
+    if extent < 4 * voxel_size:
+        raise ValueError(
+            f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "
+            "smaller voxel_size (check the clouds are in metres)"
+        )
+    check_voxel_span(voxel_size, extent, name)
+    return prepare_arrays(
+        arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
+        camera_location=camera_location, origin=origin, name=name,
+    )
 
 
 @dataclass(frozen=True)

@@ -26,18 +26,19 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from . import so3
-from ._checks import check_instance, check_voxel_size, check_voxel_span
-from .cloud import MIN_POINTS, CloudReading, PreparedCloud, as_arrays, extent, prepare
+from ._checks import check_instance, check_voxel_size
+from .cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
 from .egi import coefficients as egi_coefficients
 from .egi import facing, harmonics_table, normalise, smooth
 from .evaluation import Evaluation
 from .normals import sensor_position
 from .options import CloudOption, SpectralRegistrationOption
+from .prepared import prepared_cloud
 from .rotation import curvature_scale, gradient, rotation_step
 from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
 from .target_grid import TargetGrid
 
-__all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE", "prepared_cloud"]
+__all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 
 #: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
 #: over this share of the fixed cloud's normals.
@@ -82,27 +83,6 @@ class MovingCloud:
     def posed(self, rotation: NDArray[np.float64], translation: ArrayLike) -> NDArray[np.float64]:
         """The points at the pose ``x -> R (x - c) + c + T``, shape (M, 3)."""
         return (self.points - self.centroid) @ rotation.T + self.centroid + translation
-
-
-def prepared_cloud(
-    cloud: object, voxel_size: float, *, egi_voxel_size: float | None,
-    normal_radius: float | None, camera_location: ArrayLike | None, origin: ArrayLike,
-    name: str,
-) -> PreparedCloud:
-    """``cloud`` checked (it must span 4 voxels) and prepared
-    (:func:`o3d_spectral.cloud.prepare`, whose arguments these are)."""
-    arrays = as_arrays(cloud, name)
-    extent = float(np.max(np.ptp(arrays.points, axis=0)))
-    if extent < 4 * voxel_size:
-        raise ValueError(
-            f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "
-            "smaller voxel_size (check the clouds are in metres)"
-        )
-    check_voxel_span(voxel_size, extent, name)
-    return prepare(
-        arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
-        camera_location=camera_location, origin=origin, name=name,
-    )
 
 
 class SpectralStepper:

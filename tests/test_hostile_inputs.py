@@ -433,19 +433,19 @@ def test_polish_and_score_cost_the_cells_not_the_raw_points(monkeypatch):
     """A dense source (200k points, about 300 per 2 cm voxel) is polished and scored one
     point per quarter-voxel cell; the correspondence indices still point into the
     caller's clouds."""
-    from o3d_spectral import registration
+    from o3d_spectral import run
 
     dense = sample_model("mustard_bottle", 200_000)
     points = np.asarray(dense.points)
     target = points + [0.004, 0.0, 0.0]
     seen = []
-    refine = registration.refine
+    refine = run.refine
 
     def spy(source, *args):
         seen.append(len(source.points))
         return refine(source, *args)
 
-    monkeypatch.setattr(registration, "refine", spy)
+    monkeypatch.setattr(run, "refine", spy)
     result = o3d_spectral.registration_spectral(points, target, VOXEL)
     cells = len(np.unique(np.floor((points - points.min(axis=0)) / (0.25 * VOXEL)), axis=0))
     assert seen == [cells] and cells < len(points) / 10

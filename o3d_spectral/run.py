@@ -1,0 +1,189 @@
+"""What both registration calls share: their run's state, its start and its finish.
+
+:func:`start` checks the arguments, centres the clouds on the target and prepares both
+(:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.stepper.MovingCloud`);
+:func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), measures it as Open3D
+does and fills the result.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+from numpy.typing import ArrayLike, NDArray
+
+from . import centring
+from ._checks import check_instance, check_number, check_transformation, check_voxel_size
+from .cloud import CloudArrays, as_arrays, extent, to_legacy
+from .diagnostics import registration_warnings
+from .law import Climb, climb
+from .options import (
+    CloudOption,
+    GlobalSearchOption,
+    RefinementOption,
+    SpectralConvergenceCriteria,
+    SpectralRegistrationOption,
+)
+from .prepared import PreparedSource
+from .refinement import near_pose, refine, representatives
+from .result import SpectralRegistrationResult
+from .stepper import MovingCloud, SpectralStepper
+
+__all__ = ["Run", "check_settings", "start", "finish", "with_normals", "DEFAULT_REFINEMENT",
+           "REFINEMENT_MARGIN"]
+
+#: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
+DEFAULT_REFINEMENT = RefinementOption()
+#: The refinement sees the target within the source's radius, or this many voxels if
+#: more, of the ball holding the posed source.
+REFINEMENT_MARGIN = 10.0
+
+
+@dataclass
+class Run:
+    """What both calls share: the clouds as arrays, the fixed spectra, the moving cloud,
+    the settings and the clock."""
+
+    source: CloudArrays
+    target: CloudArrays
+    stepper: SpectralStepper
+    moving: MovingCloud
+    init: NDArray[np.float64]
+    criteria: SpectralConvergenceCriteria
+    start: float
+    offset: NDArray[np.float64] | None  # where the clouds were centred (centring module)
+
+    def climb(self, state: Climb, iterations: int) -> None:
+        """The law on ``state`` for at most ``iterations``."""
+        tolerance = self.criteria.tolerances(self.stepper.voxel_size)
+        climb(self.stepper, self.moving, state, iterations, tolerance, self.init, self.start)
+
+
+def check_settings(**settings: object) -> None:
+    """Each setting is None or an instance of its o3d_spectral class; the distance a
+    positive number of metres or None."""
+    classes = {"option": SpectralRegistrationOption, "criteria": SpectralConvergenceCriteria,
+               "cloud": CloudOption, "search": GlobalSearchOption,
+               "refinement": RefinementOption}
+    for name, value in settings.items():
+        if name == "max_correspondence_distance":
+            check_number(name, value, low=0.0, low_open=True, optional=True)
+        else:
+            check_instance(name, value, classes[name])
+
+
+def start(
+    source: object, target: object, voxel_size: float, init: ArrayLike,
+    option: SpectralRegistrationOption | None, criteria: SpectralConvergenceCriteria | None,
+    cloud: CloudOption | None,
+) -> Run:
+    """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
+    start = time.perf_counter()
+    voxel_size = check_voxel_size(voxel_size)  # type first, then value, by name
+    init = check_transformation(init)
+    ready = source if isinstance(source, PreparedSource) else None
+    if ready is not None:
+        ready.check(voxel_size, option, cloud)
+        source = ready.arrays
+    source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
+    c, origin = centring.offset(target), None
+    prepared = None if ready is None else ready.cloud
+    if c is not None:  # far from the origin: register in a frame centred on the target
+        source, target = centring.centred_arrays(source, c), centring.centred_arrays(target, c)
+        cloud = centring.centred_option(cloud or CloudOption(), c)
+        init, origin = centring.shifted(init, c), -c
+        prepared = None if ready is None else ready.moved(c)
+    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
+    moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
+    criteria = criteria or SpectralConvergenceCriteria()
+    return Run(source, target, stepper, moving, init, criteria, start, c)
+
+
+def finish(
+    run: Run, result: SpectralRegistrationResult, best: Climb,
+    transformation: NDArray[np.float64], refinement: RefinementOption | None,
+    max_correspondence_distance: float | None,
+) -> SpectralRegistrationResult:
+    """Polish ``transformation`` (4, 4), measure it, and fill ``result``."""
+    result.history, result.converged = best.history, best.converged
+    result.num_iterations = len(best.history)
+    result.source_reading = run.moving.reading.turned(run.init[:3, :3].T)  # source frame
+    result.target_reading = run.stepper.target_reading
+    if run.stepper.sees(run.moving):
+        result.target_viewpoint = run.stepper.viewpoint.copy()
+        if run.offset is not None:
+            result.target_viewpoint += run.offset
+    result.warnings = registration_warnings(
+        converged=best.converged, max_iteration=run.criteria.max_iteration,
+        readings={"source": result.source_reading, "target": result.target_reading},
+        confidence=result.confidence if result.hypotheses else None,
+    )
+    voxel_size = run.stepper.voxel_size
+    # a dense cloud is polished and scored at the cost of its voxels (2M points: seconds,
+    # not a minute); the indices map back to the caller's points
+    kept = [representatives(c.points, voxel_size, voxels)
+            for c, voxels in ((run.source, len(run.moving.points)),
+                              (run.target, len(run.stepper.target_points)))]
+    source, target = (to_legacy(subset(c, k)) for c, k in zip((run.source, run.target), kept,
+                                                                 strict=True))
+    if refinement is not None:
+        transformation = refined(run, source, target, transformation, refinement)
+    if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
+        raise FloatingPointError("the registration produced a non-finite transformation")
+    distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
+    near, indices = near_pose(target, run.source.points, transformation, distance)
+    result.transformation = transformation
+    if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
+        evaluation = o3d.pipelines.registration.evaluate_registration(
+            source, near, distance, transformation
+        )
+        pairs = np.asarray(evaluation.correspondence_set)
+        pairs[:, 0] = kept[0][pairs[:, 0]]  # back to the caller's source indices
+        pairs[:, 1] = kept[1][indices[pairs[:, 1]]]  # and the whole target's
+        result.fitness = evaluation.fitness
+        result.inlier_rmse = evaluation.inlier_rmse
+        result.correspondence_set = o3d.utility.Vector2iVector(pairs)
+    if run.offset is not None:  # back to the caller's frame
+        result.transformation = centring.shifted(transformation, -run.offset)
+        result.history = centring.uncentred_history(result.history, run.offset)
+        result.hypotheses = [(centring.shifted(M, -run.offset), s) for M, s in result.hypotheses]
+    result.max_correspondence_distance = distance
+    result.run_time = time.perf_counter() - run.start
+    return result
+
+
+def subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:
+    """The points (and normals) of ``arrays`` at ``keep``; ``arrays`` itself if all."""
+    if len(keep) == len(arrays.points):
+        return arrays
+    normals = None if arrays.normals is None else arrays.normals[keep]
+    return CloudArrays(arrays.points[keep], normals)
+
+
+def refined(
+    run: Run, source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud,
+    transformation: NDArray[np.float64], refinement: RefinementOption,
+) -> NDArray[np.float64]:
+    """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
+    of a scene within the source's size of it (the polish moves the source far less)."""
+    fixed = with_normals(target, run.stepper)
+    margin = max(extent(run.source.points)[1], REFINEMENT_MARGIN * run.stepper.voxel_size)
+    near, kept = near_pose(fixed, run.source.points, transformation, margin)
+    if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
+        return transformation
+    return refine(source, near, run.stepper.voxel_size, transformation, refinement)
+
+
+def with_normals(
+    target: o3d.geometry.PointCloud, stepper: SpectralStepper
+) -> o3d.geometry.PointCloud:
+    """``target``, or, when it has no normals, the down-sampled points and normals the
+    stepper prepared."""
+    if target.has_normals():
+        return target
+    fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
+    fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
+    return fixed
