@@ -167,13 +167,15 @@ def register_spectral_variant(name: str, *, global_search: bool = False, **setti
 
     def spectral(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
         result = call(source, target, voxel_size, **settings)
-        last = result.history[-1]
+        history = result.history  # empty when the global call confirmed its first pose
+        last = history[-1] if history else None
         info = {
             "iterations": result.num_iterations,
             "converged": result.converged,
-            "translation_gradient_norm": last.translation_gradient_norm,
-            "rotation_gradient_norm": last.rotation_gradient_norm,
-            "trajectory": np.stack([record.transformation for record in result.history]),
+            "translation_gradient_norm": last.translation_gradient_norm if last else 0.0,
+            "rotation_gradient_norm": last.rotation_gradient_norm if last else 0.0,
+            "trajectory": np.stack([record.transformation for record in history]
+                                   or [np.asarray(result.transformation)]),
             "confidence": result.confidence if global_search else None,
         }
         return np.asarray(result.transformation), info
