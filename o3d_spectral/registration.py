@@ -116,7 +116,7 @@ def registration_spectral(
     >>> source.transform(result.transformation)  # doctest: +SKIP
     """
     check_settings(option=option, criteria=criteria, cloud=cloud, refinement=refinement,
-                    max_correspondence_distance=max_correspondence_distance)
+                   max_correspondence_distance=max_correspondence_distance)
     clock = StageClock()
     with clock.stage("prepare"):
         run = start(source, target, voxel_size, init, option, criteria, cloud)
@@ -127,7 +127,7 @@ def registration_spectral(
     result.translation_peak = best.history[-1].translation_peak
     with clock.stage("polish"):
         result = finish(run, result, best, best.matrix() @ run.init, refinement,
-                         max_correspondence_distance)
+                        max_correspondence_distance)
     result.stage_times = clock.times
     return result
 
@@ -205,7 +205,7 @@ def registration_spectral_global(
     >>> result = o3d_spectral.registration_spectral_global(model, scan, 0.008)  # doctest: +SKIP
     """
     check_settings(option=option, criteria=criteria, search=search, cloud=cloud,
-                    refinement=refinement, max_correspondence_distance=max_correspondence_distance)
+                   refinement=refinement, max_correspondence_distance=max_correspondence_distance)
     search = search or GlobalSearchOption()
     search.check_memory(option or SpectralRegistrationOption())  # before any work
     clock = StageClock()
@@ -226,7 +226,7 @@ def registration_spectral_global(
         best, pose, result = _searched(run, search, ranked, focus, clock)
     with clock.stage("polish"):
         result = finish(run, result, best, pose @ run.init, refinement,
-                         max_correspondence_distance)
+                        max_correspondence_distance)
     result.stage_times = clock.times
     return result
 
