@@ -3,12 +3,12 @@
 Runs ``o3d_spectral.registration_spectral_global`` (defaults) and FPFH-RANSAC on the
 instances of ``eval/bench_speed.py`` (its tasks, one thread) and reads each stage's time
 from the call's own record, ``result.stage_times`` (:mod:`o3d_spectral.stages`): prepare,
-candidates (the SO(3) correlation, the sweep between two scans, the placements and, in a
-scene, the focused searches), confirm, climbs, ascent (two scans only), polish (the ICP
-polish and Open3D's scoring). A stage a call skipped counts 0 s; the stages sum to the
-call's time. Prints the median of each over each group's instances, the share of calls
-confirmed early, as a Markdown table, and writes ``stages.csv`` (one row per instance)
-to ``--out``.
+candidates (the SO(3) correlation, the placements and, in a scene, the focused searches),
+confirm, sweep (two scans not confirmed by the other candidates), climbs, ascent (two
+scans only), polish (the ICP polish and Open3D's scoring). A stage a call skipped counts
+0 s; the stages sum to the call's time. Prints the median of each over each group's
+instances, the share of calls confirmed early, as a Markdown table, and writes
+``stages.csv`` (one row per instance) to ``--out``.
 
 Usage: python eval/bench_stages.py --suites out/suites --out out/bench_stages
        [--limit 12] [--rotations 1] [--groups full dragon_24 ...]
@@ -28,7 +28,7 @@ import numpy as np
 
 import o3d_spectral
 
-STAGES = ("prepare", "candidates", "confirm", "climbs", "ascent", "polish")
+STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish")
 COLUMNS = [*STAGES, "total", "FPFH-RANSAC"]
 
 
