@@ -10,6 +10,7 @@ slope one (time proportional to the points), and writes ``width.csv``.
 
 Usage: python eval/bench_width.py [--widths 0.5 1 2 4] [--seeds 3]
        [--out out/bench_width] [--figure docs/img/time_vs_width.png]
+       python eval/bench_width.py --plot out/bench_width/width.csv
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 # isort: on
 
 import argparse
+import csv
 import time
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -63,6 +66,7 @@ def figure(rows: list[dict], path: Path) -> None:
         if method == speed.METHODS[0]:
             ax.loglog(points, seconds[0] * np.asarray(points) / points[0], "k:", lw=1,
                       label="proportional to the points")
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel("scene points")
     ax.set_ylabel("median seconds per call (one thread)")
     ax.set_title("One object's view against a tabletop of growing width")
@@ -79,7 +83,15 @@ def main() -> None:
     parser.add_argument("--object", default="power_drill")
     parser.add_argument("--out", type=Path, default=Path("out/bench_width"))
     parser.add_argument("--figure", type=Path, default=Path("docs/img/time_vs_width.png"))
+    parser.add_argument("--plot", type=Path, metavar="CSV",
+                        help="only draw the figure from an earlier run's width.csv")
     args = parser.parse_args()
+    if args.plot is not None:
+        with open(args.plot, newline="") as handle:
+            rows = [{**r, "width_m": float(r["width_m"]), "seconds": float(r["seconds"]),
+                     "scene_points": int(r["scene_points"])} for r in csv.DictReader(handle)]
+        figure(rows, args.figure)
+        return
     measure(args.object, args.widths[0], 100)  # untimed warm-up: plans, caches, kernels
     rows = []
     for width in args.widths:
