@@ -242,8 +242,9 @@ class GlobalSearchOption:
         clutter above the object).
     workers : int or None
         Threads the placements and the climbs are spread over (they are independent);
-        every core when None, as Open3D's RANSAC. The result is the same to the bit
-        whatever the count (:mod:`o3d_spectral.parallel`).
+        every core when None, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when that
+        is set). The result is the same to the bit whatever the count
+        (:mod:`o3d_spectral.parallel`).
     """
 
     hypotheses: int = 32

@@ -24,13 +24,19 @@ _pools_lock = threading.Lock()
 
 
 def resolved_workers(workers: int | None) -> int:
-    """``workers``, or every core this process may run on when None."""
+    """``workers``, or when None every core this process may run on, at most
+    ``OMP_NUM_THREADS`` when that is set (the usual way to ask a process's libraries for
+    fewer threads: the evaluation harness's worker processes run one thread each)."""
     if workers is not None:
         return workers
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+        cores = os.cpu_count() or 1
+    limit = os.environ.get("OMP_NUM_THREADS", "")
+    if limit.isdigit() and int(limit) > 0:
+        cores = min(cores, int(limit))
+    return max(1, cores)
 
 
 def thread_map(

@@ -36,3 +36,11 @@ def test_the_result_is_the_same_to_the_bit_whatever_the_workers(condition):
     np.testing.assert_array_equal(results[0].transformation, results[1].transformation)
     assert [s for _, s in results[0].hypotheses] == [s for _, s in results[1].hypotheses]
     assert results[0].fitness == results[1].fitness
+
+
+def test_omp_num_threads_caps_the_default_workers(monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert resolved_workers(None) == 1
+    assert resolved_workers(3) == 3  # an explicit count is kept
+    monkeypatch.setenv("OMP_NUM_THREADS", "")
+    assert resolved_workers(None) >= 1

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -143,6 +144,12 @@ def _trial_job(job: tuple) -> tuple[dict, list[float]]:
     return row, [c.controller_time for c in trial.run.cycles]
 
 
+def _limit_threads(threads: int) -> None:
+    """In a trial's worker process: at most ``threads`` threads for its libraries and its
+    global searches (:func:`o3d_spectral.parallel.resolved_workers`)."""
+    os.environ["OMP_NUM_THREADS"] = str(threads)
+
+
 def run(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
@@ -174,8 +181,9 @@ def run(args: argparse.Namespace) -> int:
     if args.workers == 1:
         done = [_trial_job(job) for job in tqdm(jobs, **bar)]
     else:
-        with ProcessPoolExecutor(max_workers=args.workers,
-                                 mp_context=get_context("spawn")) as pool:
+        share = max(1, (os.cpu_count() or 1) // args.workers)  # the cores, shared out
+        with ProcessPoolExecutor(max_workers=args.workers, mp_context=get_context("spawn"),
+                                 initializer=_limit_threads, initargs=(share,)) as pool:
             done = list(tqdm(pool.map(_trial_job, jobs), **bar))
     rows = [row for row, _ in done]
     controller_times = [t for _, times in done for t in times]
