@@ -3,7 +3,8 @@
 The global search's placements and climbs are independent of each other, and their time
 is in FFTs and compiled loops that release the GIL, so threads share them out. Each item
 is computed whole by one thread and the results come back in the items' order: a call
-gives the same result, to the bit, whatever its number of workers.
+gives the same result, to the bit, whatever its number of workers. The pools are kept
+between calls; a process forked after a threaded call starts its own.
 """
 
 from __future__ import annotations
@@ -21,6 +22,17 @@ Out = TypeVar("Out")
 
 _pools: dict[int, ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
+
+
+def _forget_pools() -> None:
+    """In a forked child: the parent's pools have no threads there; start afresh."""
+    global _pools_lock
+    _pools.clear()
+    _pools_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # a process forked after a threaded call
+    os.register_at_fork(after_in_child=_forget_pools)
 
 
 def resolved_workers(workers: int | None) -> int:

@@ -44,3 +44,14 @@ def test_omp_num_threads_caps_the_default_workers(monkeypatch):
     assert resolved_workers(3) == 3  # an explicit count is kept
     monkeypatch.setenv("OMP_NUM_THREADS", "")
     assert resolved_workers(None) >= 1
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_process_forked_after_a_threaded_call_runs_its_own_threads():
+    """The parent's pool has no threads in a forked child: the child must not wait on it."""
+    import multiprocessing
+
+    assert thread_map(lambda x: x + 1, range(8), 2) == list(range(1, 9))  # pool made here
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        result = pool.apply_async(thread_map, (abs, [-1, -2, -3], 2))
+        assert result.get(timeout=30) == [1, 2, 3]
