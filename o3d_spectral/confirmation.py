@@ -130,7 +130,7 @@ def applies(stepper: SpectralStepper, moving: MovingCloud) -> bool:
 
 def confirm(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
-    ranked: list[Hypothesis],
+    ranked: list[Hypothesis], *, fits: dict | None = None,
 ) -> Confirmation:
     """Whether the best of ``ranked`` (placed hypotheses, best first) is clearly right.
 
@@ -142,17 +142,28 @@ def confirm(
         The fixed cloud with normals, metres.
     ranked : list of Hypothesis
         The search's placed hypotheses, best first (at least one).
+    fits : dict, optional
+        :func:`fit`'s results by start pose, kept across calls on the same clouds: a
+        hypothesis still among the best after the sweep is not polished again.
 
     Returns
     -------
     Confirmation
     """
-    pose, share = fit(stepper, moving, fixed, ranked[0].transformation(moving.centroid))
+    fits = {} if fits is None else fits
+
+    def fitted(hypothesis: Hypothesis) -> tuple[NDArray[np.float64], float]:
+        start = hypothesis.transformation(moving.centroid)
+        key = start.tobytes()
+        if key not in fits:
+            fits[key] = fit(stepper, moving, fixed, start)
+        return fits[key]
+
+    pose, share = fitted(ranked[0])
     runner_up = 0.0
     if share >= MIN_FIT:
         for other in ranked[1:CANDIDATES]:
-            polished, other_share = fit(stepper, moving, fixed,
-                                        other.transformation(moving.centroid))
+            polished, other_share = fitted(other)
             if so3.rotation_angle(polished[:3, :3].T @ pose[:3, :3]) > DISTINCT_ANGLE:
                 runner_up = max(runner_up, other_share)
     confirmed = share >= MIN_FIT and share - runner_up >= FIT_MARGIN

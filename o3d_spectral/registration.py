@@ -211,15 +211,15 @@ def registration_spectral_global(
     clock = StageClock()
     with clock.stage("prepare"):
         run = start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
-    memo: dict = {}  # candidates and placements, kept for the second ranking
+    memo: dict = {}  # candidates, placements and fits, kept for the second ranking
     with clock.stage("candidates"):
         ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, sweep=False,
                                           memo=memo)
-    confirmed = _confirmation(run, search, ranked, clock)
+    confirmed = _confirmation(run, search, ranked, clock, memo)
     if confirmed is None and sweeps(run.stepper, run.moving, search):
         with clock.stage("sweep"):  # two views: the sweep of SO(3) joins the candidates
             ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, memo=memo)
-        confirmed = _confirmation(run, search, ranked, clock)
+        confirmed = _confirmation(run, search, ranked, clock, memo)
     if confirmed is not None:
         best, pose, result = _confirmed(run, confirmed)
     else:
@@ -232,15 +232,18 @@ def registration_spectral_global(
 
 
 def _confirmation(
-    run: Run, search: GlobalSearchOption, ranked: list, clock: StageClock
+    run: Run, search: GlobalSearchOption, ranked: list, clock: StageClock, memo: dict
 ) -> confirmation.Confirmation | None:
     """The confirmation of the best of ``ranked`` (:mod:`o3d_spectral.confirmation`), or
-    None where it does not apply or does not confirm."""
+    None where it does not apply or does not confirm. ``memo`` keeps the fixed cloud and
+    the fits made, for a second confirmation after the sweep."""
     if not (search.confirm and confirmation.applies(run.stepper, run.moving)):
         return None
     with clock.stage("confirm"):
-        fixed = with_normals(to_legacy(run.target), run.stepper)
-        confirmed = confirmation.confirm(run.stepper, run.moving, fixed, ranked)
+        if "fixed" not in memo:
+            memo["fixed"] = with_normals(to_legacy(run.target), run.stepper)
+        confirmed = confirmation.confirm(run.stepper, run.moving, memo["fixed"], ranked,
+                                         fits=memo.setdefault("fits", {}))
     return confirmed if confirmed.confirmed else None
 
 
