@@ -121,18 +121,39 @@ CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}
 ALL_GROUPS = (*CONDITIONS, "crop_in_scene", "wide", *real.GROUPS)
 
 
+#: The groups made from the suites' folder (``--suites``).
+SUITE_GROUPS = (*CONDITIONS, "crop_in_scene")
+
+
+def instance_score(instance) -> object:
+    """``(T) -> (rotation_error_deg, translation_error_m, success)`` of a synthetic
+    instance, symmetry-aware (``harness.metrics.instance_metrics``)."""
+
+    def score(T):
+        m = instance_metrics(T, instance)
+        return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
+
+    return score
+
+
+def group_tasks(group: str, suites: Path | None, rotations: int, limit: int) -> list[Task]:
+    """The instances of ``group`` (one of :data:`ALL_GROUPS`), at most ``limit``."""
+    if group in CONDITIONS:
+        return list(suite_tasks(suites, group, limit))
+    if group == "crop_in_scene":
+        return list(crop_tasks(suites, limit))
+    if group == "wide":
+        return list(wide_tasks(limit))
+    return list(real_tasks(group, rotations, limit))
+
+
 def suite_tasks(root: Path, condition: str, limit: int) -> Iterator[Task]:
     suite = load_suite(root / condition)
     for index in range(min(SUITE_SIZE, limit, len(suite))):
         instance = suite[index]
-
-        def score(T, instance=instance):
-            m = instance_metrics(T, instance)
-            return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
-
         seed = task_seed(0, condition, int(suite.manifest["seed"]), index, "fpfh_ransac")
         yield Task(condition, f"{condition}_{index:03d}", instance.source, instance.target,
-                   SUITE_VOXEL, seed, score)
+                   SUITE_VOXEL, seed, instance_score(instance))
 
 
 def wide_tasks(limit: int) -> Iterator[Task]:
@@ -140,13 +161,8 @@ def wide_tasks(limit: int) -> Iterator[Task]:
     metres wide (:func:`o3d_spectral.synthetic.wide.wide_scene_instance`, seed 100 + i)."""
     for index, name in enumerate(model_names()[:limit]):
         instance = wide_scene_instance(name, WIDE_WIDTH, np.random.default_rng(100 + index))
-
-        def score(T, instance=instance):
-            m = instance_metrics(T, instance)
-            return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
-
         yield Task("wide", f"wide_{name}", instance.source, instance.target, SUITE_VOXEL,
-                   index, score)
+                   index, instance_score(instance))
 
 
 def crop_tasks(root: Path, limit: int) -> Iterator[Task]:
@@ -262,18 +278,11 @@ def main() -> None:
     args = parser.parse_args()
     groups = [g for g in ALL_GROUPS if g in args.groups]
     if args.suites is None:
-        groups = [g for g in groups if g not in (*CONDITIONS, "crop_in_scene")]
+        groups = [g for g in groups if g not in SUITE_GROUPS]
 
     tasks: list[Task] = []
     for group in groups:
-        if group in CONDITIONS:
-            tasks += suite_tasks(args.suites, group, args.limit)
-        elif group == "wide":
-            tasks += wide_tasks(args.limit)
-        elif group == "crop_in_scene":
-            tasks += crop_tasks(args.suites, args.limit)
-        else:
-            tasks += real_tasks(group, args.rotations, args.limit)
+        tasks += group_tasks(group, args.suites, args.rotations, args.limit)
     if not tasks:
         parser.error("no instances: give --suites or real groups")
     for method in METHODS:  # warm-up, untimed: FFT plans, caches, lazy imports

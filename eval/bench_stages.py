@@ -52,19 +52,11 @@ def main() -> None:
     parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
                         default=list(speed.ALL_GROUPS))
     args = parser.parse_args()
-    groups = [g for g in args.groups
-              if args.suites is not None or g not in (*speed.CONDITIONS, "crop_in_scene")]
+    groups = [g for g in args.groups if args.suites is not None or g not in speed.SUITE_GROUPS]
 
     rows, lines, warmed = [], [], False
     for group in groups:
-        if group in speed.CONDITIONS:
-            tasks = list(speed.suite_tasks(args.suites, group, args.limit))
-        elif group == "wide":
-            tasks = list(speed.wide_tasks(args.limit))
-        elif group == "crop_in_scene":
-            tasks = list(speed.crop_tasks(args.suites, args.limit))
-        else:
-            tasks = list(speed.real_tasks(group, args.rotations, args.limit))
+        tasks = speed.group_tasks(group, args.suites, args.rotations, args.limit)
         if not warmed and tasks:  # untimed: FFT plans, caches, compiled kernels
             speed.spectral_global(tasks[0])
             speed.fpfh_ransac(tasks[0])
