@@ -166,6 +166,14 @@ class CloudOption:
             object.__setattr__(self, "target_viewpoint", check_point(
                 "target_viewpoint", self.target_viewpoint))
 
+    @property
+    def source_camera(self) -> tuple[float, float, float] | None:
+        """Where the source's sensor was (metres, source frame): ``source_camera_location``,
+        or ``camera_location`` when it is not given."""
+        if self.source_camera_location is not None:
+            return self.source_camera_location
+        return self.camera_location
+
 
 @dataclass(frozen=True)
 class GlobalSearchOption:

@@ -88,7 +88,7 @@ class PreparedSource:
         option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
         asked = {"voxel_size": float(voxel_size), "egi_voxel_size": option.egi_voxel_size,
                  "normal_radius": cloud.normal_radius,
-                 "camera_location": _source_camera(cloud)}
+                 "camera_location": cloud.source_camera}
         for name, value in asked.items():
             if getattr(self, name) != value:
                 raise ValueError(
@@ -100,13 +100,6 @@ class PreparedSource:
         registration centres far-away clouds in, :mod:`o3d_spectral.centring`)."""
         return dataclasses.replace(self.cloud, points=self.cloud.points - offset,
                                    normal_points=self.cloud.normal_points - offset)
-
-
-def _source_camera(cloud: CloudOption) -> tuple[float, float, float] | None:
-    """Where the source's sensor was (:class:`CloudOption`): its own, or the target's."""
-    if cloud.source_camera_location is not None:
-        return cloud.source_camera_location
-    return cloud.camera_location
 
 
 def prepare(
@@ -143,7 +136,7 @@ def prepare(
     check_instance("cloud", cloud, CloudOption)
     option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
     arrays = as_arrays(source, "source")
-    camera = _source_camera(cloud)
+    camera = cloud.source_camera
     prepared = prepared_cloud(
         arrays, float(voxel_size), egi_voxel_size=option.egi_voxel_size,
         normal_radius=cloud.normal_radius, camera_location=camera, origin=np.zeros(3),

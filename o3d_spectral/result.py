@@ -64,8 +64,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     stage_times : dict of str to float
         Seconds spent in each stage of the call, in the order they ran
         (:mod:`o3d_spectral.stages`): ``prepare``, ``candidates``, ``confirm``,
-        ``climbs``, ``ascent``, ``polish`` for the global call; ``prepare``, ``law``,
-        ``polish`` for the local one.
+        ``sweep``, ``climbs``, ``ascent``, ``polish`` for the global call (those it ran);
+        ``prepare``, ``law``, ``polish`` for the local one.
     """
 
     def __init__(self) -> None:

@@ -291,7 +291,7 @@ def ranked_hypotheses(
             rotations += shell_rotations(stepper, moving, search.shell_hypotheses)
         memo["candidates"] = rotations
     rotations = list(memo["candidates"])
-    if two_views and sweep and search.sweep_rotations:
+    if sweep and sweeps(stepper, moving, search):
         rotations += swept_rotations(stepper, moving, search.sweep_rotations)
     ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
                      two_views=two_views, workers=search.workers, memo=memo)

@@ -197,7 +197,7 @@ class SpectralStepper:
             :func:`o3d_spectral.prepare` keeps it): not prepared again.
         """
         if prepared is None:
-            prepared = self._prepare(cloud, name, self.cloud.source_camera_location)
+            prepared = self._prepare(cloud, name, self.cloud.source_camera)
         points, point_normals, normals = prepared.points, prepared.point_normals, prepared.normals
         if transformation is not None:
             M = np.asarray(transformation, dtype=np.float64)
