@@ -15,7 +15,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["compile_all", "harmonic_sums", "splat_into"]
+__all__ = ["compile_all", "harmonic_sums", "splat_into", "HARMONIC_BLOCK"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -34,9 +34,18 @@ def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
     return c, a, b
 
 
-@numba.njit(cache=True, nogil=True)
+#: Directions whose harmonics :func:`harmonic_sums` carries through the recurrence
+#: together: each step is then a short loop over them that the compiler vectorises.
+HARMONIC_BLOCK = 64
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
 def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
     """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B`` (:func:`o3d_spectral.harmonics.project`).
+
+    The orthonormal Legendre recurrence runs over blocks of :data:`HARMONIC_BLOCK`
+    directions at once, each block's terms summed before they are added to ``F``
+    (reassociated sums: equal to a one-direction-at-a-time loop to rounding).
 
     Parameters
     ----------
@@ -54,30 +63,52 @@ def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
     """
     F = np.zeros((B, 2 * B - 1))
     c, a, b = _legendre_factors(B)
-    root2 = np.sqrt(2.0)
-    for i in range(directions.shape[0]):
-        x = min(max(directions[i, 2], -1.0), 1.0)
-        s = np.sqrt(max(1.0 - x * x, 0.0))
-        rho = np.hypot(directions[i, 0], directions[i, 1])
-        cu, su = 1.0, 0.0  # (cos phi, sin phi); phi = 0 at the poles
-        if rho > 1e-15:
-            cu, su = directions[i, 0] / rho, directions[i, 1] / rho
-        cm, sm, sine_power = 1.0, 0.0, 1.0  # cos(m phi), sin(m phi), sin(theta)^m
+    K = HARMONIC_BLOCK
+    x, s, cu, su = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
+    cm, sm, sine_power = np.empty(K), np.empty(K), np.empty(K)
+    wc, ws, p, before = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
+    for first in range(0, directions.shape[0], K):
+        k = min(K, directions.shape[0] - first)
+        for j in range(k):
+            i = first + j
+            x[j] = min(max(directions[i, 2], -1.0), 1.0)
+            s[j] = np.sqrt(max(1.0 - x[j] * x[j], 0.0))
+            rho = np.hypot(directions[i, 0], directions[i, 1])
+            cu[j], su[j] = 1.0, 0.0  # (cos phi, sin phi); phi = 0 at the poles
+            if rho > 1e-15:
+                cu[j], su[j] = directions[i, 0] / rho, directions[i, 1] / rho
+            cm[j], sm[j], sine_power[j] = 1.0, 0.0, 1.0  # cos(m phi), sin(m phi), sin^m
         for m in range(B):
-            if m > 0:
-                cm, sm = cm * cu - sm * su, cm * su + sm * cu
-                sine_power *= s
-            w = weights[i] * (root2 if m > 0 else 1.0)
-            wc, ws = w * cm, w * sm
-            before, p = 0.0, c[m] * sine_power  # P_{l-1}^m, P_l^m from l = m
+            scale = np.sqrt(2.0) if m > 0 else 1.0
+            for j in range(k):
+                if m > 0:
+                    cosine_m = cm[j] * cu[j] - sm[j] * su[j]
+                    sm[j] = cm[j] * su[j] + sm[j] * cu[j]
+                    cm[j] = cosine_m
+                    sine_power[j] *= s[j]
+                w = weights[first + j] * scale
+                wc[j], ws[j] = w * cm[j], w * sm[j]
+                before[j] = 0.0  # P_{l-1}^m and P_l^m, from l = m
+                p[j] = c[m] * sine_power[j]
             for l in range(m, B):  # noqa: E741
                 if l == m + 1:
-                    before, p = p, np.sqrt(2.0 * m + 3.0) * x * p
+                    first_step = np.sqrt(2.0 * m + 3.0)
+                    for j in range(k):
+                        before[j] = p[j]
+                        p[j] = first_step * x[j] * before[j]
                 elif l > m + 1:
-                    before, p = p, a[l, m] * (x * p - b[l, m] * before)
-                F[l, B - 1 + m] += p * wc
+                    a_lm, b_lm = a[l, m], b[l, m]  # scalars: the loop below vectorises
+                    for j in range(k):
+                        previous = p[j]
+                        p[j] = a_lm * (x[j] * previous - b_lm * before[j])
+                        before[j] = previous
+                cosine, sine = 0.0, 0.0
+                for j in range(k):
+                    cosine += p[j] * wc[j]
+                    sine += p[j] * ws[j]
+                F[l, B - 1 + m] += cosine
                 if m > 0:
-                    F[l, B - 1 - m] += p * ws
+                    F[l, B - 1 - m] += sine
     return F
 
 

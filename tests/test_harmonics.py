@@ -58,9 +58,10 @@ def test_harmonics_are_orthonormal_on_the_grid():
     np.testing.assert_allclose(gram[np.ix_(mask, mask)], np.eye(mask.sum()), atol=1e-12)
 
 
-def test_project_equals_sum_of_harmonics(rng):
+@pytest.mark.parametrize("count", [2, 64, 300])  # under, at and across the kernel's block
+def test_project_equals_sum_of_harmonics(rng, count):
     B = 12
-    n = rng.normal(size=(300, 3))
+    n = rng.normal(size=(count, 3))
     n[0] = [0, 0, 1]  # the poles, where the longitude is undefined
     n[1] = [0, 0, -3]
     w = rng.uniform(0.5, 2.0, len(n))
