@@ -150,11 +150,12 @@ def dense_bounds(
     if k == 0:
         return lower, upper
     for axis in range(3):
-        ends = np.sort(np.partition(p[:, axis], (k, len(p) - k - 1))[: k + 1])
+        parted = np.partition(p[:, axis], (k, len(p) - k - 1))  # both ends in one pass
+        ends = np.sort(parted[: k + 1])
         wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
         if len(wide):
             lower[axis] = ends[wide[-1] + 1]
-        ends = np.sort(np.partition(p[:, axis], len(p) - k - 1)[len(p) - k - 1 :])
+        ends = np.sort(parted[len(p) - k - 1 :])
         wide = np.flatnonzero(np.diff(ends) > gap * voxel_size)
         if len(wide):
             upper[axis] = ends[wide[0]]
@@ -195,7 +196,8 @@ class CloudReading:
         None otherwise (always for a two-sided cloud).
     sign_disagreement : float or None
         For given normals: the share of neighbours whose normals point to opposite sides
-        (:func:`o3d_spectral.signs.sign_disagreement`).
+        (:func:`o3d_spectral.signs.sign_disagreement`); None when not measured (estimated
+        normals, or given normals that face the sensor).
     flatness : float
         Length of the mean unit normal: 1 when all normals are alike (a plane, whose
         EGI leaves the rotation about it free), near 0 for a closed surface.
@@ -262,13 +264,22 @@ def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> N
 def _signs_checked(
     arrays: CloudArrays, voxel_size: float, camera_location: ArrayLike | None,
     origin: ArrayLike | None,
-) -> tuple[CloudArrays, str | None, float, bool]:
+) -> tuple[CloudArrays, str | None, float | None, bool]:
     """Given normals as they are when their signs agree along the surface; otherwise
     with their signs chosen again by :func:`o3d_spectral.normals.orient`. Returned with
     the rule that chose them (None: as given, or two-sided), the share of neighbours
     that disagreed and whether the cloud is two-sided (its disagreeing neighbours back to
     back, :data:`o3d_spectral.signs.THIN_WALLS`: the signs are then chosen only so that
-    the normals averaged per voxel do not cancel, and are not used otherwise)."""
+    the normals averaged per voxel do not cancel, and are not used otherwise).
+
+    Normals that all but :data:`o3d_spectral.signs.SIGN_DISAGREEMENT` of face the sensor
+    (``camera_location``, else ``origin``) are signed by it, as :func:`orient` would sign
+    them: they are used as given without the neighbour search (a depth camera's capture
+    in its own frame; the disagreement is then reported as None)."""
+    sensor = camera_location if camera_location is not None else origin
+    sensor = np.zeros(3) if sensor is None else sensor
+    if faces(arrays.points, arrays.normals, sensor, share=1.0 - SIGN_DISAGREEMENT):
+        return arrays, None, None, False
     disagreement, away = neighbour_signs(arrays.points, arrays.normals)
     if disagreement <= SIGN_DISAGREEMENT:
         return arrays, None, disagreement, False

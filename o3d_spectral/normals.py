@@ -265,13 +265,15 @@ def _turned_to_face(normals: NDArray[np.float64], reference: ArrayLike) -> NDArr
     return np.where((dots < 0.0)[:, None], -normals, normals)
 
 
-def faces(points: ArrayLike, normals: ArrayLike, place: ArrayLike) -> bool:
-    """Whether at least :data:`VIEW_SHARE` of the (non-zero) ``normals`` (N, 3) at
-    ``points`` (metres) face ``place`` (metres, shape (3,)): a view seen from there."""
+def faces(
+    points: ArrayLike, normals: ArrayLike, place: ArrayLike, share: float = VIEW_SHARE
+) -> bool:
+    """Whether at least ``share`` of the (non-zero) ``normals`` (N, 3) at ``points``
+    (metres) face ``place`` (metres, shape (3,)): a view seen from there."""
     n = np.asarray(normals, dtype=np.float64)
     usable = np.any(n != 0.0, axis=1)
     rays = np.asarray(place, dtype=np.float64) - np.asarray(points, dtype=np.float64)
-    return bool(np.mean(np.einsum("ij,ij->i", n, rays)[usable] > 0.0) >= VIEW_SHARE)
+    return bool(np.mean(np.einsum("ij,ij->i", n, rays)[usable] > 0.0) >= share)
 
 
 def _propagated(points: NDArray[np.float64], normals: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -102,6 +102,23 @@ def test_a_thin_walled_cloud_is_read_two_sided_and_others_are_not():
     assert not face.reading.two_sided and face.reading.normals_from == "re-oriented"
 
 
+def test_normals_facing_the_sensor_are_taken_as_given_without_the_neighbour_search():
+    """A depth camera's view in its own frame (the near cap of a sphere 0.5 m in front
+    of the origin, outward normals): every normal faces the sensor, so the signs are
+    used as given and the neighbour search is skipped (disagreement not measured). With
+    a third of the signs flipped they no longer all face it: searched, and re-oriented."""
+    points = _sphere(radius=0.1)
+    near = points[points[:, 2] < -0.07]  # the cap the camera sees, not its rim
+    outward = near / 0.1
+    view = near + [0.0, 0.0, 0.5]
+    reading = prepare(as_arrays(np.hstack([view, outward])), VOXEL).reading
+    assert (reading.normals_from, reading.sign_disagreement) == ("given", None)
+    signs = np.where(np.random.default_rng(7).random((len(near), 1)) < 0.33, -1.0, 1.0)
+    flipped = prepare(as_arrays(np.hstack([view, outward * signs])), VOXEL).reading
+    assert flipped.normals_from == "re-oriented"
+    assert flipped.sign_disagreement > SIGN_DISAGREEMENT
+
+
 def test_orient_towards_a_camera_and_outward_on_a_model():
     points = _sphere()
     outward = points / np.linalg.norm(points, axis=1, keepdims=True)
