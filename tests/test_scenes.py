@@ -13,7 +13,7 @@ from o3d_spectral.synthetic.models import load_model
 from o3d_spectral.synthetic.sampling import model_cloud
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
-from o3d_spectral.synthetic.tabletop import _place_on_table
+from o3d_spectral.synthetic.tabletop import place_on_table
 
 
 def _distance_to_mesh(mesh, pose, points):
@@ -110,7 +110,7 @@ def test_cluttered_scene_has_the_table_and_a_visible_object():
 
 def test_objects_on_the_table_rest_on_it_without_overlap():
     names = ["power_drill", "bowl", "mug", "cracker_box", "banana", "scissors", "foam_brick"]
-    placed, poses = _place_on_table(names, np.random.default_rng(4))
+    placed, poses = place_on_table(names, np.random.default_rng(4))
     assert len(placed) >= 3
     clouds = []
     for name, pose in zip(placed, poses, strict=True):

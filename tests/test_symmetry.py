@@ -13,13 +13,13 @@ from o3d_spectral.harness.errors import (
     symmetric_translation_error,
     translation_error,
 )
-from o3d_spectral.harness.symmetry import (
+from o3d_spectral.synthetic.models import load_model, model_names
+from o3d_spectral.synthetic.symmetry import (
     SYMMETRIC_MODELS,
     Symmetry,
     model_symmetry,
     refine_axis,
 )
-from o3d_spectral.synthetic.models import load_model, model_names
 
 
 def _pose(rotvec, t):
