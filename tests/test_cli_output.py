@@ -52,6 +52,7 @@ def _partly_readable(folder: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_json_is_the_only_thing_on_stdout_even_with_debug_logging(pair):
     """-vv: Open3D's debug log and the package's progress go to stderr; stdout parses
     as one JSON document. In a pipe, no status line or progress frame is drawn."""
@@ -66,6 +67,7 @@ def test_json_is_the_only_thing_on_stdout_even_with_debug_logging(pair):
     assert "\r" not in done.stderr and "\x1b[K" not in done.stderr
 
 
+@pytest.mark.slow
 def test_a_failed_read_leaves_stdout_empty(tmp_path, pair):
     """Open3D's warning about a file it reads only in part goes to stderr, and becomes the
     error (exit 1) naming the file, rather than a registration of what it read."""

@@ -78,6 +78,7 @@ def test_log_ticks_are_labelled_in_plain_text(value, label):
     assert decade_label(value) == label
 
 
+@pytest.mark.slow
 def test_every_figure_is_written_as_an_opaque_png(tmp_path):
     frame = _frame(np.random.default_rng(1))
     written = [

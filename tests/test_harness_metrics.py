@@ -271,6 +271,7 @@ def _turned(instance, axis_index: int, degrees: float) -> np.ndarray:
     return instance.T_gt @ turn
 
 
+@pytest.mark.slow
 def test_a_turn_the_view_cannot_see_is_indistinguishable():
     """Occluded instance 6 (seed 0): a mug whose handle is hidden. Turned 10 degrees
     about its body's axis it fits the view as well as the truth; turned as far about a

@@ -196,6 +196,7 @@ def _manifest_values():
         max_leaves=8)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
@@ -260,6 +261,7 @@ def _lines(out):
     return [line for file in result_files(out) for line in file.read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_eval_stops_on_a_missing_instance_file_naming_it(suite_dir, tmp_path):
     """Not recorded as the method's failure: the eval stops and says which file."""
     run_eval, load_results, _ = _harness()

@@ -3,7 +3,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 
+
+@pytest.mark.slow
 def test_kernels_compile_ahead_from_the_command_line():
     """``python -m o3d_spectral.kernels`` compiles (or loads) every kernel and says so."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}

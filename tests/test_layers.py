@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ast
 from collections.abc import Iterator
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -46,8 +47,18 @@ def layer(module: str) -> str:
 
 def is_module(dotted: str) -> bool:
     """Whether ``dotted`` names a module or package of the project."""
-    path = ROOT.joinpath(*dotted.split("."))
+    return _is_module(ROOT.joinpath(*dotted.split(".")))
+
+
+@cache
+def _is_module(path: Path) -> bool:
     return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
+@cache
+def parsed(path: Path) -> ast.Module:
+    """A file's syntax tree, parsed once."""
+    return ast.parse(path.read_text(), str(path))
 
 
 def imported(path: Path) -> Iterator[tuple[ast.AST, str, str | None]]:
@@ -55,7 +66,7 @@ def imported(path: Path) -> Iterator[tuple[ast.AST, str, str | None]]:
     import takes from ``module`` (None for ``import module``); relative imports resolved."""
     here = module_name(path)
     package = here if path.name == "__init__.py" else here.rpartition(".")[0]
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Import):
             for alias in node.names:
                 yield node, alias.name, None
@@ -124,7 +135,7 @@ def private_reaches(path: Path) -> Iterator[str]:
         full = aliases[head] + (f".{rest}" if rest else "")
         return full if is_module(full) else None
 
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Attribute) and private(node.attr):
             owner = resolved(node.value)
             if owner is not None and not is_module(f"{owner}.{node.attr}"):

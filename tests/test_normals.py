@@ -155,6 +155,7 @@ def test_a_view_in_a_world_frame_registers_as_in_its_camera_frame():
     assert abs(in_world.fitness - in_camera.fitness) < 0.05
 
 
+@pytest.mark.slow
 def test_unoriented_normals_are_reoriented_with_a_warning(caplog):
     case = load_cases(["dragon_24"])[0]
     source, target = o3d.geometry.PointCloud(case.source), o3d.geometry.PointCloud(case.target)
@@ -172,6 +173,7 @@ def test_unoriented_normals_are_reoriented_with_a_warning(caplog):
     assert translation_error(result.transformation, case.T_gt, center=centre) < 0.01
 
 
+@pytest.mark.slow
 def test_two_views_are_matched_whole():
     case = load_cases(["dragon_24"])[0]
     result = o3d_spectral.registration_spectral(case.source, case.target, 0.005, case.T_gt)
@@ -179,6 +181,7 @@ def test_two_views_are_matched_whole():
     assert result.target_viewpoint is None
 
 
+@pytest.mark.slow
 def test_a_plane_and_a_run_cut_short_each_log_a_warning(caplog):
     rng = np.random.default_rng(3)
     plane = np.c_[rng.uniform(-0.1, 0.1, (3000, 2)), np.zeros(3000)]

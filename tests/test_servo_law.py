@@ -70,6 +70,7 @@ def test_later_law_cycles_search_the_shift_about_what_the_last_one_left():
     np.testing.assert_allclose(second.evaluation.translation, whole.translation, atol=4e-4)
 
 
+@pytest.mark.slow
 def test_global_steps_head_for_a_far_rotation_then_hand_over_to_the_law():
     """From 120 degrees, beyond the law's reach, the global search's correction is the
     true one (to the grid's resolution), its increments follow the gains, and the law

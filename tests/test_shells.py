@@ -61,6 +61,7 @@ def test_shell_hypotheses_must_be_a_count():
         o3d_spectral.GlobalSearchOption(shell_hypotheses=-1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pair, off", [
     # 48 degrees apart (about 30% overlap): the EGIs share too little, the shells'
     # candidates find it (the EGI alone misses by 157 deg; the sweep, off here, finds it too).
