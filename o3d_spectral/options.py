@@ -208,10 +208,9 @@ class GlobalSearchOption:
         ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
         scene. They only have to find the places the EGI is focused on, where the
         focused EGI's ``hypotheses`` peaks are placed; each costs a phase correlation on
-        the whole scene's grid (about 13 ms on a tabletop). Cluttered suite (240
-        instances): 145 successes with 16 as with 32 (12 won, 12 lost), in 24% less time;
-        130 with 8. YCB-Video frame: 67% in every normal mode with 16, 47 / 47 / 60% with
-        32.
+        the whole scene's grid (about 13 ms on a tabletop). 16 succeed on cluttered
+        scenes as often as 32 in less time, and more often on a real RGB-D frame, where
+        more whole-scene peaks place the object on the clutter; 8 are too few.
     search_visibility : bool
         Against a single view (``CloudOption.target_viewpoint``): correlate the fixed EGI
         with the moving one as the sensor would see it at each rotation (weighted by the
@@ -246,8 +245,8 @@ class GlobalSearchOption:
         highest, are placed at full resolution; 0 places every one at full resolution.
         With 12 of the EGI's 32 alone, a YCB-Video foam brick crop lost its true rotation
         to a 180-degree turn the coarse grid ranked higher. Not for a model against a
-        view (occluded suite: 3 instances lost, 0 won) or a scene (the coarse grid ranks
-        clutter above the object).
+        view (it loses occluded views) or a scene (the coarse grid ranks clutter above
+        the object).
     workers : int or None
         Threads the placements and the climbs are spread over (they are independent);
         every core when None, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when that
