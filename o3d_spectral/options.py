@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import check_bool, check_choice, check_int, check_number, check_point
-from .grid import SPLAT_MODES
+from .spectra.grid import SPLAT_MODES
 
 __all__ = [
     "SpectralRegistrationOption",
@@ -147,7 +147,7 @@ class CloudOption:
         culling), so that the back of a model is not matched against a one-sided scan.
         ``"auto"``: the origin, when at least 90% of the target's normals face it (a
         single view in its sensor's frame), else far along the direction of a view
-        recognised from its normals and depth (:func:`o3d_spectral.normals.view_direction`),
+        recognised from its normals and depth (:func:`o3d_spectral.io.normals.view_direction`),
         else none; None: never cull.
     """
 
@@ -204,7 +204,7 @@ class GlobalSearchOption:
         places (over the moving cloud's radius apart) where the first hypotheses put it.
     scene_hypotheses : int
         In a scene (a fixed cloud over 1.5 times the moving one's radius,
-        :meth:`o3d_spectral.target_grid.TargetGrid.holds_more`) searched with
+        :meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`) searched with
         ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
         scene. They only have to find the places the EGI is focused on, where the
         focused EGI's ``hypotheses`` peaks are placed; each costs a phase correlation on
@@ -221,7 +221,7 @@ class GlobalSearchOption:
         180 / (2B) degrees in alpha and gamma); at least ``2 * bandwidth - 1``.
     shell_hypotheses : int
         For two single views (two scans): peaks of the correlation of the voxel grids'
-        spectra on spherical shells (:mod:`o3d_spectral.shells`) tried besides the EGI's;
+        spectra on spherical shells (:mod:`o3d_spectral.spectra.shells`) tried besides the EGI's;
         0 tries none.
     sweep_rotations : int
         For two single views: rotations spread evenly over SO(3) (this many over the

@@ -13,7 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from .cloud import extent
+from .io.cloud import extent
 from .options import RefinementOption
 
 __all__ = [

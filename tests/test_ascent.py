@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral import so3
 from o3d_spectral.ascent import best_ascent, peak_ascent
 from o3d_spectral.harness.real import load_cases
 from o3d_spectral.search import placed_peaks, span_factor
+from o3d_spectral.spectra import so3
 
 
 @pytest.fixture(scope="module")

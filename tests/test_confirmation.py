@@ -8,8 +8,9 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import confirmation, so3
+from o3d_spectral import confirmation
 from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
 from tests.conftest import sample_model

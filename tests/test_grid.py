@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from o3d_spectral.grid import Lattice, check_memory, splat
+from o3d_spectral.spectra.grid import Lattice, check_memory, splat
 
 
 @pytest.fixture

@@ -6,7 +6,6 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import so3
 from o3d_spectral.harness import methods, metrics
 from o3d_spectral.harness.metrics import (
     SuccessCriteria,
@@ -15,6 +14,7 @@ from o3d_spectral.harness.metrics import (
     registration_fit,
 )
 from o3d_spectral.harness.runner import task_seed
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic import models
 from o3d_spectral.synthetic.instance import Instance
 from o3d_spectral.synthetic.scenes import make_instance

@@ -1,5 +1,5 @@
 """Normals: sign checks, orientation, and single views recognised in any frame
-(o3d_spectral.normals), checked on exact shapes and on the bundled real scans."""
+(o3d_spectral.io.normals), checked on exact shapes and on the bundled real scans."""
 
 from __future__ import annotations
 
@@ -11,15 +11,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral.cloud import as_arrays, prepare
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_translation_error,
     translation_error,
 )
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.normals import orient, sensor_direction, view_direction
-from o3d_spectral.signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
+from o3d_spectral.io.cloud import as_arrays, prepare
+from o3d_spectral.io.normals import orient, sensor_direction, view_direction
+from o3d_spectral.io.signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
 from tests.conftest import thin_walled_cup
 
 VOXEL = 0.008

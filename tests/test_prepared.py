@@ -5,7 +5,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import so3
+from o3d_spectral.spectra import so3
 from tests.conftest import sample_model
 
 VOXEL = 0.008

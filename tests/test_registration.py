@@ -5,13 +5,14 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import search, so3
+from o3d_spectral import search
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
 from tests.conftest import sample_model
 from tests.scene_fixtures import load_scene

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from o3d_spectral import SpectralRegistrationOption, servo, so3
+from o3d_spectral import SpectralRegistrationOption, servo
 from o3d_spectral.servo import control
+from o3d_spectral.spectra import so3
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,10 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral import GlobalSearchOption, SpectralRegistrationOption, so3
+from o3d_spectral import GlobalSearchOption, SpectralRegistrationOption
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.servo import ServoLaw
+from o3d_spectral.spectra import so3
 from tests.conftest import sample_model
 from tests.test_registration import random_motion
 

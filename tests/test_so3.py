@@ -4,7 +4,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import so3
+from o3d_spectral.spectra import so3
 
 
 def test_hat_is_cross_product(rng):

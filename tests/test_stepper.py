@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral.egi import harmonics_table
+from o3d_spectral.spectra.egi import harmonics_table
 from tests.conftest import sample_model, thin_walled_cup
 
 
@@ -110,7 +110,7 @@ def test_visible_correlation_ranks_the_rotation_of_a_view_first():
     whole model's EGI correlation puts the right rotation 7th among its peaks; weighted
     and normalised as the sensor sees it (``search_visibility``), it is the first."""
     from o3d_spectral.harness.errors import symmetric_rotation_error
-    from o3d_spectral.so3fft import peaks
+    from o3d_spectral.spectra.so3fft import peaks
     from tests.scene_fixtures import load_scene
 
     instance = load_scene("partial_power_drill")

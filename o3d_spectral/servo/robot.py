@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _extras, so3
+from .. import _extras
+from ..spectra import so3
 
 __all__ = ["HAND_EYE", "FLANGE_LINK", "Arm"]
 

@@ -124,7 +124,7 @@ def correlation_grid(
     ----------
     F, G : array_like, shape (B, 2B - 1) or (S, B, 2B - 1)
         Coefficients of the moving and the fixed EGI; or stacks of ``S`` functions each
-        (the spectra's shells, :mod:`o3d_spectral.shells`), whose ``S`` correlations of
+        (the spectra's shells, :mod:`o3d_spectral.spectra.shells`), whose ``S`` correlations of
         ``F[s]`` with ``G[s]`` are summed.
     n_alpha : int, optional
         Samples of ``alpha`` and ``gamma`` (>= 2B - 1); ``2B`` when omitted.
@@ -172,7 +172,7 @@ def visible_correlation_grid(
 
     A sensor samples a surface in proportion to a weight ``w(n) >= 0`` of its normal (a
     depth camera in direction ``d``: the cosine of incidence ``max(0, n . d)``,
-    :func:`o3d_spectral.egi.facing`), so the fixed EGI ``g`` of one view is expected to
+    :func:`o3d_spectral.spectra.egi.facing`), so the fixed EGI ``g`` of one view is expected to
     be ``w f_R`` (``f_R(n) = f(R^T n)``: the moving EGI turned by ``R``), not ``f_R``.
     The grid holds the cosine similarity of the two, both without degree 0, over
     ``4 pi`` (the unit of :func:`correlation_grid` for unit-norm coefficients)::

@@ -12,7 +12,7 @@ coefficients (paper, eq. real_fourier_transform_gr_simplified)::
 matrices, obtained from the angular-momentum operators ``L_k`` in the complex basis by
 the complex-to-real change of basis ``T^l``: ``u^l_k = i T^l L_k^T (T^l)^H``.
 
-All arrays use the padded layout of :mod:`o3d_spectral.harmonics`: the matrices for all
+All arrays use the padded layout of :mod:`o3d_spectral.spectra.harmonics`: the matrices for all
 degrees ``l < B`` are stacked as shape ``(B, 2B - 1, 2B - 1)``, the block of degree ``l``
 centred, zeros elsewhere. A rotation is evaluated as
 ``U(R) = Uz(alpha) Q Uz(beta) Q^T Uz(gamma)`` from its ZYZ Euler angles, where ``Uz`` (a
