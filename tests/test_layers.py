@@ -1,10 +1,13 @@
 """Imports point one way, and no module reaches into another's private names.
 
 The layers, lowest first: the core (the method and its maths, at the package's top level
-and in its subpackages other than those below), ``synthetic`` (the scene generator and the
-models' symmetries), then ``harness`` (evaluation) and ``servo`` (visual servoing), which do
-not use each other, and ``cli`` over all of them. A module may import from its own layer
-and the layers below it. Read from the source with ``ast``: nothing is imported.
+and in ``io`` and ``spectra``), ``synthetic`` (the scene generator and the models'
+symmetries), then ``harness`` (evaluation) and ``servo`` (visual servoing), which do not
+use each other, and ``cli`` over all of them. A module may import from its own layer and
+the layers below it. Within the core, ``io`` (clouds as given) imports only itself and the
+package's private helpers, and ``spectra`` (the pure maths) only itself, ``io`` and those
+helpers; the method, at the top level, uses both. Read from the source with ``ast``:
+nothing is imported.
 
 A private name (one starting with an underscore, not a dunder) is its module's own: no
 other module, script or test imports it or reads it as an attribute. Private *modules*
@@ -33,6 +36,15 @@ ALLOWED = {
 }
 
 
+#: Within the core: what ``io`` and ``spectra`` may import besides themselves.
+CORE_ALLOWED = {
+    "io": {"helpers"},
+    "spectra": {"io", "helpers"},
+}
+#: The package's private helper modules, which any module may use.
+HELPERS = {"_checks", "_extras", "_lazy", "_bundled"}
+
+
 def module_name(path: Path) -> str:
     """The dotted name of a source file under the project root."""
     parts = path.relative_to(ROOT).with_suffix("").parts
@@ -43,6 +55,14 @@ def layer(module: str) -> str:
     """The layer of a module of the package (see the module docstring)."""
     parts = module.split(".")
     return parts[1] if len(parts) > 1 and parts[1] in ALLOWED else "core"
+
+
+def core_part(module: str) -> str:
+    """``io``, ``spectra``, ``helpers`` or ``method`` for a module of the core."""
+    parts = module.split(".")
+    if len(parts) > 1 and parts[1] in CORE_ALLOWED:
+        return parts[1]
+    return "helpers" if len(parts) > 1 and parts[1] in HELPERS else "method"
 
 
 def is_module(dotted: str) -> bool:
@@ -171,6 +191,18 @@ def test_imports_point_down_the_layers(path):
         }
     )
     assert not wrong, f"the {own} layer imports {wrong}"
+    part = core_part(module_name(path)) if own == "core" else None
+    if part in CORE_ALLOWED:
+        wrong = sorted(
+            {
+                target
+                for target in package_imports(path)
+                if target != "o3d_spectral"
+                and core_part(target) != part
+                and core_part(target) not in CORE_ALLOWED[part]
+            }
+        )
+        assert not wrong, f"o3d_spectral.{part} imports {wrong}"
 
 
 def test_no_private_name_is_reached_from_another_module():
@@ -198,5 +230,9 @@ def test_the_checks_see_what_they_forbid(tmp_path, monkeypatch):
     )
     assert layer(module_name(core)) == "core"
     assert {layer(target) for target in package_imports(core)} == {"harness"}
+    assert core_part("o3d_spectral.spectra.so3") == "spectra"
+    assert core_part("o3d_spectral._checks") == "helpers"
+    assert core_part("o3d_spectral.law") == "method"
+    assert "method" not in CORE_ALLOWED["spectra"]  # the maths never use the method
     reaches = list(private_reaches(core))
     assert len(reaches) == 4, reaches
