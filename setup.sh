@@ -22,4 +22,4 @@ extra="harness"; [ "${1:-}" = "dev" ] && extra="dev"
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q -e ".[${extra}]"
 # Compile the numba kernels now (cached on disk), not on the first registration.
-"$venv/bin/python" -m o3d_spectral.kernels
+"$venv/bin/python" -m o3d_spectral.spectra.kernels

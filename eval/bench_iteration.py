@@ -24,9 +24,9 @@ import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 
 import o3d_spectral  # noqa: E402
-from o3d_spectral import fft, so3  # noqa: E402
+from o3d_spectral.spectra import fft, so3  # noqa: E402
+from o3d_spectral.spectra.target_grid import PRECISION  # noqa: E402
 from o3d_spectral.synthetic import models  # noqa: E402
-from o3d_spectral.target_grid import PRECISION  # noqa: E402
 
 PAPER_MS = 8.7
 

@@ -28,9 +28,9 @@ import open3d as o3d
 
 import o3d_spectral
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
-from o3d_spectral.harness.symmetry import Symmetry, model_symmetry
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud
 from o3d_spectral.synthetic.suite import load_suite
+from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
 
 
 def scans(suite_dir: Path, name: str) -> list[tuple[object, np.ndarray]]:

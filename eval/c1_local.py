@@ -18,8 +18,8 @@ import numpy as np
 import open3d as o3d
 
 import o3d_spectral
-from o3d_spectral import so3
 from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic import models
 
 OBJECTS = ("mustard_bottle", "power_drill", "mug", "cracker_box", "banana", "scissors")

@@ -12,7 +12,8 @@ from typing import Any
 
 def lazy_attributes(package: str, where: dict[str, str]) -> Callable[[str], Any]:
     """A module ``__getattr__`` for ``package`` that imports ``name`` from the submodule
-    ``where[name]`` on first access."""
+    ``where[name]`` on first access (a name starting with a dot is relative to ``package``,
+    as in a relative import: ``"..synthetic.symmetry"``)."""
 
     def __getattr__(name: str) -> Any:
         if name not in where:
@@ -21,6 +22,9 @@ def lazy_attributes(package: str, where: dict[str, str]) -> Callable[[str], Any]
             if importlib.util.find_spec(f"{package}.{name}") is not None:
                 return importlib.import_module(f"{package}.{name}")
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        return getattr(importlib.import_module(f"{package}.{where[name]}"), name)
+        module = where[name]
+        if module.startswith("."):
+            return getattr(importlib.import_module(module, package), name)
+        return getattr(importlib.import_module(f"{package}.{module}"), name)
 
     return __getattr__

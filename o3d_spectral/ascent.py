@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from . import so3
 from .search import Hypothesis, span_factor
+from .spectra import so3
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["ASCENT_SPAN", "ASCENT_STEPS", "PRESELECT_SPAN", "PRESELECT_STEPS", "peak_ascent",

@@ -3,7 +3,7 @@
 The calls move both clouds by minus the target's centroid, register them there, and
 express every result in the caller's frame again, so that the result does not depend on
 where the caller's frame has its origin: the voxel grids' lattice
-(:class:`o3d_spectral.target_grid.TargetGrid` aligns it to multiples of the voxel size)
+(:class:`o3d_spectral.spectra.target_grid.TargetGrid` aligns it to multiples of the voxel size)
 then sits in the same place on the clouds whether they are 1 m or 1000 km from the
 origin, and georeferenced coordinates (UTM, hundreds of kilometres) lose no precision.
 What the origin of the caller's frame means (the sensor of a scan in its sensor's frame)
@@ -18,7 +18,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from .cloud import CloudArrays
+from .io.cloud import CloudArrays
 from .law import IterationRecord
 from .options import CloudOption
 

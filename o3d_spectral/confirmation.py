@@ -31,9 +31,9 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from . import so3
 from .refinement import near_pose, point_to_plane_icp
 from .search import DISTINCT_ANGLE, Hypothesis
+from .spectra import so3
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["Confirmation", "applies", "confirm", "fit", "MIN_FIT", "FIT_MARGIN", "CANDIDATES",
@@ -120,7 +120,7 @@ def fit(
 
 def applies(stepper: SpectralStepper, moving: MovingCloud) -> bool:
     """Whether a fit can confirm a pose: not in a scene (a fixed cloud that holds more
-    than the moving one, :meth:`o3d_spectral.target_grid.TargetGrid.holds_more`). There
+    than the moving one, :meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`). There
     a flat face fits a table or a box beside the object as well as the object itself
     (tabletop scenes: a box model placed 19 cm off on the table fitted 1.00 and
     its distinct alternatives as much), and the places the search has not climbed yet

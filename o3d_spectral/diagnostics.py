@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 
-from .cloud import CloudReading
+from .io.cloud import CloudReading
 
 __all__ = ["FLAT", "LOW_CONFIDENCE", "registration_warnings"]
 

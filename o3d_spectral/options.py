@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import check_bool, check_choice, check_int, check_number, check_point
-from .grid import SPLAT_MODES
+from .spectra.grid import SPLAT_MODES
 
 __all__ = [
     "SpectralRegistrationOption",
@@ -147,7 +147,7 @@ class CloudOption:
         culling), so that the back of a model is not matched against a one-sided scan.
         ``"auto"``: the origin, when at least 90% of the target's normals face it (a
         single view in its sensor's frame), else far along the direction of a view
-        recognised from its normals and depth (:func:`o3d_spectral.normals.view_direction`),
+        recognised from its normals and depth (:func:`o3d_spectral.io.normals.view_direction`),
         else none; None: never cull.
     """
 
@@ -204,14 +204,13 @@ class GlobalSearchOption:
         places (over the moving cloud's radius apart) where the first hypotheses put it.
     scene_hypotheses : int
         In a scene (a fixed cloud over 1.5 times the moving one's radius,
-        :meth:`o3d_spectral.target_grid.TargetGrid.holds_more`) searched with
+        :meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`) searched with
         ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
         scene. They only have to find the places the EGI is focused on, where the
         focused EGI's ``hypotheses`` peaks are placed; each costs a phase correlation on
-        the whole scene's grid (about 13 ms on a tabletop). Cluttered suite (240
-        instances): 145 successes with 16 as with 32 (12 won, 12 lost), in 24% less time;
-        130 with 8. YCB-Video frame: 67% in every normal mode with 16, 47 / 47 / 60% with
-        32.
+        the whole scene's grid (about 13 ms on a tabletop). 16 succeed on cluttered
+        scenes as often as 32 in less time, and more often on a real RGB-D frame, where
+        more whole-scene peaks place the object on the clutter; 8 are too few.
     search_visibility : bool
         Against a single view (``CloudOption.target_viewpoint``): correlate the fixed EGI
         with the moving one as the sensor would see it at each rotation (weighted by the
@@ -222,7 +221,7 @@ class GlobalSearchOption:
         180 / (2B) degrees in alpha and gamma); at least ``2 * bandwidth - 1``.
     shell_hypotheses : int
         For two single views (two scans): peaks of the correlation of the voxel grids'
-        spectra on spherical shells (:mod:`o3d_spectral.shells`) tried besides the EGI's;
+        spectra on spherical shells (:mod:`o3d_spectral.spectra.shells`) tried besides the EGI's;
         0 tries none.
     sweep_rotations : int
         For two single views: rotations spread evenly over SO(3) (this many over the
@@ -246,8 +245,8 @@ class GlobalSearchOption:
         highest, are placed at full resolution; 0 places every one at full resolution.
         With 12 of the EGI's 32 alone, a YCB-Video foam brick crop lost its true rotation
         to a 180-degree turn the coarse grid ranked higher. Not for a model against a
-        view (occluded suite: 3 instances lost, 0 won) or a scene (the coarse grid ranks
-        clutter above the object).
+        view (it loses occluded views) or a scene (the coarse grid ranks clutter above
+        the object).
     workers : int or None
         Threads the placements and the climbs are spread over (they are independent);
         every core when None, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when that

@@ -9,8 +9,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _extras
-from .harness.errors import rotation_error, translation_error
 from .law import IterationRecord
+from .pose_errors import rotation_error, translation_error
 
 __all__ = ["pyplot", "convergence_errors", "plot_convergence"]
 
@@ -36,7 +36,7 @@ def convergence_errors(
         Source-to-target transformation.
     center : array_like, shape (3,), optional
         Source point at which translation errors are measured (the source frame's origin
-        when omitted; see :func:`o3d_spectral.harness.errors.translation_error`).
+        when omitted; see :func:`o3d_spectral.pose_errors.translation_error`).
 
     Returns
     -------

@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import check_instance, check_number, check_voxel_span
-from .cloud import CloudArrays, PreparedCloud, as_arrays
-from .cloud import prepare as prepare_arrays
+from .io.cloud import CloudArrays, PreparedCloud, as_arrays
+from .io.cloud import prepare as prepare_arrays
 from .options import CloudOption, SpectralRegistrationOption
 
 __all__ = ["PreparedSource", "prepare", "prepared_cloud"]
@@ -35,7 +35,7 @@ def prepared_cloud(
     name: str,
 ) -> PreparedCloud:
     """``cloud`` checked (it must span 4 voxels) and prepared
-    (:func:`o3d_spectral.cloud.prepare`, whose arguments these are)."""
+    (:func:`o3d_spectral.io.cloud.prepare`, whose arguments these are)."""
     arrays = as_arrays(cloud, name)
     extent = float(np.max(np.ptp(arrays.points, axis=0)))
     if extent < 4 * voxel_size:

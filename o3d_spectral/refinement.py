@@ -13,7 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from .cloud import extent
+from .io.cloud import extent
 from .options import RefinementOption
 
 __all__ = [
@@ -155,10 +155,7 @@ def refine(
     voxel, and only the better is polished again on the whole source: the whole source's
     ICP is most of the cost (a 40k-point dragon scan against one 72 degrees away, which
     shares a fifth of it: 0.2-0.6 s, its 30 iterations spent). Polishing both starts on
-    the whole source, as before, took twice as long (dragon pairs: 0.54 s against 0.23 s)
-    for no better result (the four suites' successes of 240: 239 / 235 / 194 / 145
-    before, 239 / 235 / 195 / 145 after; the dragon pairs' errors the same to 0.01
-    degree).
+    the whole source takes twice as long for no better result.
 
     ``init`` itself when the kept result has at most ``GUARD_SHARE`` of the inliers of
     ``init`` at ``option.distance``: from a wrong pose with few correspondences on a thin

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import confirmation
 from .ascent import best_ascent
-from .cloud import to_legacy
+from .io.cloud import to_legacy
 from .law import Climb
 from .options import (
     CloudOption,

@@ -6,7 +6,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from .cloud import CloudReading
+from .io.cloud import CloudReading
 from .law import IterationRecord
 
 __all__ = ["SpectralRegistrationResult"]
@@ -50,7 +50,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     source_reading, target_reading : CloudReading
         How each cloud was read: where its normals came from (given, re-oriented,
         estimated), the rule that oriented them, and the direction towards its sensor
-        when its normals say it is a single view (:class:`o3d_spectral.cloud.CloudReading`).
+        when its normals say it is a single view (:class:`o3d_spectral.io.cloud.CloudReading`).
     target_viewpoint : ndarray, shape (3,), or None
         Where the target's sensor was taken to be (metres) when the source was matched
         as that sensor would see it (back faces culled); None when matched whole.

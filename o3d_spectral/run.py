@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import centring
 from ._checks import check_instance, check_number, check_transformation, check_voxel_size
-from .cloud import CloudArrays, as_arrays, extent, to_legacy
 from .diagnostics import registration_warnings
+from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
 from .law import Climb, climb
 from .options import (
     CloudOption,

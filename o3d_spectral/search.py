@@ -33,14 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import so3
 from .law import Climb, climb
 from .options import GlobalSearchOption
 from .parallel import thread_map
-from .shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
-from .so3fft import correlation_grid, peaks
+from .spectra import so3
+from .spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
+from .spectra.so3fft import correlation_grid, peaks
+from .spectra.target_grid import COARSE_FACTOR
 from .stepper import MovingCloud, SpectralStepper
-from .target_grid import COARSE_FACTOR
 
 __all__ = [
     "Hypothesis", "hypotheses", "egi_rotations", "shell_rotations", "swept_rotations", "places",
@@ -67,7 +67,7 @@ PLACEMENT_SPAN = 96.0
 #: The sweep's rotations that join the other candidates.
 SWEEP_PLACEMENTS = 16
 #: Largest angle (radians) between the two views' sensor directions the sweep tries
-#: (from the normals, :func:`o3d_spectral.normals.view_direction`: 62-86 degrees on
+#: (from the normals, :func:`o3d_spectral.io.normals.view_direction`: 62-86 degrees on
 #: dragon scans 48-72 degrees apart); scans from further apart share little surface.
 SWEEP_SENSOR_ANGLE = np.deg2rad(110.0)
 #: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
@@ -136,7 +136,7 @@ def shell_rotations(
     stepper: SpectralStepper, moving: MovingCloud, count: int
 ) -> list[tuple[NDArray[np.float64], float]]:
     """The ``count`` highest peaks over SO(3) (rotation, value) of the correlation of the
-    two clouds' spectra on spherical shells (:mod:`o3d_spectral.shells`), highest first."""
+    two clouds' spectra on spherical shells (:mod:`o3d_spectral.spectra.shells`), highest first."""
     voxel = shell_voxel(stepper.target_points, moving.points)
     grid = correlation_grid(
         shell_coefficients(moving.points, voxel), shell_coefficients(stepper.target_points, voxel),
@@ -160,7 +160,7 @@ def swept_rotations(
     evenly over SO(3), that place best by phase correlation on a coarse grid (rotation,
     peak height), best first.
 
-    Of the ``count`` rotations of :func:`o3d_spectral.so3.uniform_rotations`, those that
+    Of the ``count`` rotations of :func:`o3d_spectral.spectra.so3.uniform_rotations`, those that
     turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
     fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a
     moving cloud over :data:`SWEEP_SPAN` of those across). Two scans far enough apart
@@ -186,7 +186,7 @@ def placed_peaks(
     """The phase-correlation peak heights of the moving cloud turned by each rotation
     (3, 3) about its centroid and placed anywhere on a grid of ``factor`` voxels:
     :meth:`o3d_spectral.SpectralStepper.locate`'s for each, batched
-    (:meth:`o3d_spectral.target_grid.TargetGrid.peaks`)."""
+    (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.peaks`)."""
     moved = (stepper.visible(moving, R, np.zeros(3))[0] for R in rotations)
     return stepper.grid.coarsened(factor).peaks(moved, moving.radius, moving.centroid)
 
@@ -196,7 +196,7 @@ def _placed(
     around: ArrayLike | None, coarse_placements: int = 0, *, two_views: bool = False,
     workers: int | None = 1, memo: dict | None = None,
 ) -> list[Hypothesis]:
-    """``rotations`` (from :func:`o3d_spectral.so3fft.peaks`) placed by phase correlation
+    """``rotations`` (from :func:`o3d_spectral.spectra.so3fft.peaks`) placed by phase correlation
     near ``around`` (anywhere when None), highest placed peak first. Placed anywhere
     between ``two_views`` (:meth:`o3d_spectral.SpectralStepper.two_views`): on a grid
     where the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the

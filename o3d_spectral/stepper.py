@@ -1,7 +1,7 @@
 """The fixed cloud's spectra, and one evaluation of the control law against them.
 
 A :class:`SpectralStepper` holds what is computed once for the fixed cloud: its voxel grid
-and cached spectra (:class:`o3d_spectral.target_grid.TargetGrid`) and its EGI's
+and cached spectra (:class:`o3d_spectral.spectra.target_grid.TargetGrid`) and its EGI's
 spherical-harmonic coefficients at every smoothing level. For a moving cloud at a pose
 ``x -> R (x - c) + c + T`` (``c``: the moving cloud's centroid, the paper's rotation about
 the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full corrections:
@@ -9,7 +9,7 @@ the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full correct
 - translation ``grad_glob T`` (metres): the phase-correlation shift that takes the moved
   cloud onto the fixed one (eq. fourier_shift_solution), sub-voxel;
 - rotation (radians): ``grad C_r`` (eq. cr_derivative) divided by the correlation's
-  curvature (:func:`o3d_spectral.rotation.rotation_step`),
+  curvature (:func:`o3d_spectral.spectra.rotation.rotation_step`),
 
 and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The loop is
 :mod:`o3d_spectral.law`; a stepper holds no state of a run: it serves many moving clouds.
@@ -25,18 +25,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from . import so3
 from ._checks import check_instance, check_voxel_size
-from .cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
-from .egi import coefficients as egi_coefficients
-from .egi import facing, harmonics_table, normalise, smooth
 from .evaluation import Evaluation
-from .normals import sensor_position
+from .io.cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
+from .io.normals import sensor_position
 from .options import CloudOption, SpectralRegistrationOption
 from .prepared import prepared_cloud
-from .rotation import curvature_scale, gradient, rotation_step
-from .so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
-from .target_grid import TargetGrid
+from .spectra import so3
+from .spectra.egi import coefficients as egi_coefficients
+from .spectra.egi import facing, harmonics_table, normalise, smooth
+from .spectra.rotation import curvature_scale, gradient, rotation_step
+from .spectra.so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
+from .spectra.target_grid import TargetGrid
 
 __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 
@@ -66,7 +66,7 @@ class MovingCloud:
         EGI coefficients ``F^l`` before smoothing and normalisation.
     harmonics : ndarray, shape (M, B (2B - 1)), or None
         Real spherical harmonics at each of ``point_normals``
-        (:func:`o3d_spectral.egi.harmonics_table`), kept when the fixed cloud is a
+        (:func:`o3d_spectral.spectra.egi.harmonics_table`), kept when the fixed cloud is a
         single view: the visible part's EGI is then one product per pose.
     reading : CloudReading
         How the cloud was read: its normals' provenance, and ``view`` (turned with it).
@@ -92,7 +92,7 @@ class SpectralStepper:
     ----------
     target : PointCloud, tensor PointCloud or ndarray (N, 3) / (N, 6)
         The fixed cloud (reference), metres. Not modified. Normals are estimated when
-        absent (see :func:`o3d_spectral.cloud.prepare`).
+        absent (see :func:`o3d_spectral.io.cloud.prepare`).
     voxel_size : float
         Voxel edge ``r``, metres (the paper: 0.008).
     option : SpectralRegistrationOption, optional
@@ -225,10 +225,10 @@ class SpectralStepper:
         """Whether the clouds are two scans of one thing: both single views
         (``reading.view`` known on both) of about one size. Neither is culled, and the
         global search adds rotations from the voxel grids' spectra
-        (:mod:`o3d_spectral.shells`), which two views share more of than their EGIs. A
+        (:mod:`o3d_spectral.spectra.shells`), which two views share more of than their EGIs. A
         view of one object against a view of a whole scene (a crop into its frame) is not
         two scans: it is searched as an object in a scene
-        (:meth:`o3d_spectral.target_grid.TargetGrid.holds_more`)."""
+        (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`)."""
         views = self.target_reading.view is not None and moving.reading.view is not None
         return views and not self.grid.holds_more(moving.radius)
 
@@ -264,7 +264,7 @@ class SpectralStepper:
         """The moving cloud's points at the pose ``x -> R (x - c) + c + T``, less those
         facing away from the fixed cloud's sensor when it is a single view; the mask and
         the cosines of incidence (None when nothing is culled). A two-sided cloud
-        (:attr:`o3d_spectral.cloud.CloudReading.two_sided`) faces the sensor with either
+        (:attr:`o3d_spectral.io.cloud.CloudReading.two_sided`) faces the sensor with either
         side: none of its points is culled, and a negative cosine says the sensor sees
         the side its normal points away from."""
         moved = moving.posed(R, T)
@@ -284,7 +284,8 @@ class SpectralStepper:
     ) -> tuple[NDArray[np.float64], float, float]:
         """Where the moving cloud, turned by ``rotation`` (3, 3) about its centroid, best
         matches the fixed one (searched near ``around``, metres, when given; on a grid of
-        ``factor`` voxels when over 1, :meth:`o3d_spectral.target_grid.TargetGrid.coarsened`):
+        ``factor`` voxels when over 1,
+        :meth:`o3d_spectral.spectra.target_grid.TargetGrid.coarsened`):
         its centroid there (metres), the phase-correlation peak height and ``J_t`` before
         the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
@@ -302,12 +303,12 @@ class SpectralStepper:
         EGI as the sensor would see it turned: weighted by the cosine of incidence from
         where the sensor is seen from the fixed cloud's normals (their centroid), and
         normalised over that visible part
-        (:func:`o3d_spectral.so3fft.visible_correlation_grid`), the correlation the law
+        (:func:`o3d_spectral.spectra.so3fft.visible_correlation_grid`), the correlation the law
         climbs there. A two-sided moving cloud is seen the same way: each normal ``n``
         seen with weight ``|n . d|``, turned to face the sensor, is at ``m`` facing it
         ``(m . d) (f(m) + f(-m))``, twice the cosine-weighted two-sided EGI (its
         coefficients). Otherwise the plain ``C_r`` of the whole EGIs
-        (:func:`o3d_spectral.so3fft.correlation_grid`).
+        (:func:`o3d_spectral.spectra.so3fft.correlation_grid`).
         """
         G = self.target_coefficients[level]
         if not (visibility and self.sees(moving)):

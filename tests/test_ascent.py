@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral import so3
 from o3d_spectral.ascent import best_ascent, peak_ascent
 from o3d_spectral.harness.real import load_cases
 from o3d_spectral.search import placed_peaks, span_factor
+from o3d_spectral.spectra import so3
 
 
 @pytest.fixture(scope="module")
@@ -20,6 +20,7 @@ def scans():
     return stepper, moving, case.T_gt
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("axis", [(1.0, 0.0, 0.0), (0.3, -0.8, 0.5)])
 def test_ascent_turns_a_pose_15_degrees_off_back_to_the_truth(scans, axis):
     stepper, moving, truth = scans
@@ -69,6 +70,7 @@ def test_coarsened_grids_are_shared_and_only_the_last_few_kept(scans):
 
 
 
+@pytest.mark.slow
 def test_the_global_call_ascends_between_two_scans():
     """Between two views the law's EGI term leaves the pose off: the ascent runs there."""
     case = load_cases(["dragon_24"])[0]
@@ -88,6 +90,7 @@ def test_batched_placement_peaks_are_those_of_one_placement_each(scans):
     assert np.argmax(batched) == 0  # the truth places best
 
 
+@pytest.mark.slow
 def test_best_ascent_starts_from_the_pose_whose_coarse_ascent_peaks_highest(scans):
     stepper, moving, truth = scans
     starts = []

@@ -42,6 +42,7 @@ def _zipped_package(path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_a_zip_import_reads_the_data_from_an_extracted_copy(tmp_path):
     archive = _zipped_package(tmp_path / "o3d_spectral.zip")
     code = (

@@ -13,6 +13,7 @@ from o3d_spectral.cli import main
 from tests.conftest import sample_model
 
 
+@pytest.mark.slow
 def test_register_prints_matrix_and_json(tmp_path, capsys):
     source = sample_model("mustard_bottle", 5000)
     T = np.eye(4)
@@ -111,6 +112,7 @@ def test_library_logs_nothing_unless_configured():
     assert done.stdout == "" and done.stderr == ""
 
 
+@pytest.mark.slow
 def test_demo_writes_plot_and_result(tmp_path, capsys):
     pytest.importorskip("matplotlib", reason="the harness extra is not installed")
     assert main(["demo", "--object", "cracker_box", "--seed", "1", "--out", str(tmp_path)]) == 0

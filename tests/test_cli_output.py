@@ -52,6 +52,7 @@ def _partly_readable(folder: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_json_is_the_only_thing_on_stdout_even_with_debug_logging(pair):
     """-vv: Open3D's debug log and the package's progress go to stderr; stdout parses
     as one JSON document. In a pipe, no status line or progress frame is drawn."""
@@ -66,6 +67,7 @@ def test_json_is_the_only_thing_on_stdout_even_with_debug_logging(pair):
     assert "\r" not in done.stderr and "\x1b[K" not in done.stderr
 
 
+@pytest.mark.slow
 def test_a_failed_read_leaves_stdout_empty(tmp_path, pair):
     """Open3D's warning about a file it reads only in part goes to stderr, and becomes the
     error (exit 1) naming the file, rather than a registration of what it read."""
@@ -169,7 +171,7 @@ def test_status_line_on_a_terminal_follows_the_log(monkeypatch):
     monkeypatch.setattr(_output, "STATUS_DELAY", 0.05)
     monkeypatch.setattr(_output, "STATUS_INTERVAL", 0.02)
     stage = logging.getLogger("o3d_spectral.registration")
-    with _output._package_logging(logging.WARNING, "o3d-spectral register"):
+    with _output.package_logging(logging.WARNING, "o3d-spectral register"):
         stage.info("stage %s: %.3f s", "sweep", 1.25)
         time.sleep(0.3)
         stage.warning("something to say")
@@ -184,11 +186,11 @@ def test_status_line_on_a_terminal_follows_the_log(monkeypatch):
 def test_status_line_only_on_a_terminal_and_not_with_q(monkeypatch):
     args = build_parser().parse_args(["register", "a.ply", "b.ply", "--voxel-size", "0.01"])
     monkeypatch.setattr(sys, "stderr", io.StringIO())
-    assert cli._status_label(args) is None and not cli.show_progress(args)
+    assert cli.status_label(args) is None and not cli.show_progress(args)
     monkeypatch.setattr(sys, "stderr", _Terminal())
-    assert cli._status_label(args) == "o3d-spectral register" and cli.show_progress(args)
+    assert cli.status_label(args) == "o3d-spectral register" and cli.show_progress(args)
     args.errors_only = True
-    assert cli._status_label(args) is None and not cli.show_progress(args)
+    assert cli.status_label(args) is None and not cli.show_progress(args)
 
 
 def _commands() -> dict[str, argparse.ArgumentParser]:

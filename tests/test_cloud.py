@@ -3,7 +3,7 @@
 import numpy as np
 
 import o3d_spectral
-from o3d_spectral.cloud import dense_bounds
+from o3d_spectral.io.cloud import dense_bounds
 from tests.conftest import sample_model
 
 

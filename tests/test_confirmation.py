@@ -8,8 +8,9 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import confirmation, so3
+from o3d_spectral import confirmation
 from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
 from tests.conftest import sample_model
@@ -51,6 +52,7 @@ def test_fit_is_whole_at_the_truth_and_low_half_a_turn_away(drill):
     assert wrong < share - confirmation.FIT_MARGIN
 
 
+@pytest.mark.slow
 def test_a_clear_case_is_confirmed_and_skips_the_climbs(drill):
     source, target, T = drill
     result = o3d_spectral.registration_spectral_global(source, target, VOXEL)
@@ -63,6 +65,7 @@ def test_a_clear_case_is_confirmed_and_skips_the_climbs(drill):
     assert translation_error(result.transformation, T, center=center) < 0.002
 
 
+@pytest.mark.slow
 def test_without_confirmation_the_climbs_run_and_agree(drill):
     source, target, T = drill
     search = o3d_spectral.GlobalSearchOption(confirm=False)
@@ -87,6 +90,7 @@ def test_a_pose_with_a_distinct_rival_is_not_confirmed(drill):
         assert not decided.confirmed
 
 
+@pytest.mark.slow
 def test_no_confirmation_in_a_scene():
     instance = make_instance("cluttered", "power_drill", rng=instance_rng(0, 3))
     stepper, moving = prepared(instance.source, instance.target)
@@ -100,6 +104,7 @@ def test_the_ascent_runs_between_two_views_only(drill):
     assert "ascent" not in result.stage_times  # a model against its copy: not two views
 
 
+@pytest.mark.slow
 def test_each_stage_logs_its_time_at_info(drill, caplog):
     source, target, _ = drill
     with caplog.at_level(logging.INFO, logger="o3d_spectral"):
@@ -115,6 +120,7 @@ def test_confirm_must_be_a_flag():
         o3d_spectral.GlobalSearchOption(confirm=1)
 
 
+@pytest.mark.slow
 def test_a_crop_into_its_scene_is_searched_as_an_object_in_a_scene():
     """The object's points cut out of a cluttered view, against the whole view: two single
     views, but not two scans of one thing. No sweep of SO(3) over the scene, no ascent;

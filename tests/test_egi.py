@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import egi, harmonics, wigner
+from o3d_spectral.spectra import egi, harmonics, wigner
 
 
 def test_histogram_counts_every_normal(rng):

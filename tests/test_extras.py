@@ -55,7 +55,7 @@ def test_require_names_the_extra(monkeypatch):
     from o3d_spectral.servo import robot
 
     with pytest.raises(ImportError, match=r"'servo' extra .*o3d-spectral\[servo\]"):
-        robot._pybullet()
+        robot.load_pybullet()
 
 
 def test_make_suite_without_the_harness_extra_says_which(monkeypatch, capsys, tmp_path):

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from o3d_spectral.grid import Lattice, check_memory, splat
+from o3d_spectral.spectra.grid import Lattice, check_memory, splat
 
 
 @pytest.fixture
@@ -27,6 +27,7 @@ def test_count_and_binary(box):
     assert binary.sum() == 2 and binary.max() == 1
 
 
+@pytest.mark.slow
 def test_points_outside_are_dropped_and_out_buffer_is_used(box):
     out = np.full((box.shape[0] + 5,) * 3, 7.0)
     grid = splat(np.array([[5.0, 5.0, 5.0], [0.0, 0.0, 0.0]]), box, mode="count", out=out)

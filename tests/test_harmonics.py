@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.special import sph_harm_y
 
-from o3d_spectral import harmonics
+from o3d_spectral.spectra import harmonics
 from tests.conftest import band_limited
 
 

@@ -7,15 +7,15 @@ pandas = pytest.importorskip("pandas", reason="the harness extra is not installe
 pytest.importorskip("matplotlib", reason="the harness extra is not installed")
 from PIL import Image  # noqa: E402  (a dependency of matplotlib)
 
-from o3d_spectral.harness._plotting import _decade  # noqa: E402
-from o3d_spectral.harness.convergence_plot import _medians, _padded  # noqa: E402
+from o3d_spectral.harness._plotting import decade_label  # noqa: E402
+from o3d_spectral.harness.convergence_plot import median_curves, padded_curves  # noqa: E402
 from o3d_spectral.harness.figures import (  # noqa: E402
     ANGLE_BINS_DEG,
-    _success_by_angle,
     plot_convergence,
     plot_cumulative_errors,
     plot_success_vs_angle,
     plot_times,
+    success_by_angle,
 )
 
 
@@ -54,30 +54,31 @@ def test_success_by_angle_is_pandas_cut_and_mean():
     runs.loc[3, "success"] = None  # unknown: left out of its bin
     bins = pandas.cut(runs["init_angle_deg"], ANGLE_BINS_DEG, include_lowest=True)
     expected = runs["success"].astype(float).groupby(bins, observed=False).mean()
-    np.testing.assert_array_equal(_success_by_angle(runs), expected.to_numpy())
+    np.testing.assert_array_equal(success_by_angle(runs), expected.to_numpy())
 
 
 def test_curves_are_padded_with_their_last_value():
-    padded = _padded([[3.0, 2.0, 1.0], [5.0], [4.0, 0.5]])
+    padded = padded_curves([[3.0, 2.0, 1.0], [5.0], [4.0, 0.5]])
     np.testing.assert_array_equal(padded, [[3, 2, 1], [5, 5, 5], [4, 0.5, 0.5]])
 
 
 def test_the_successes_median_is_as_long_as_their_longest_curve():
     curves = [[8.0, 4.0, 2.0, 1.0], [6.0, 3.0], [2.0, 1.0, 0.5]]
-    (everyone, _, _), (wins, colour, _) = _medians(curves, np.array([False, True, True]), 10.0)
+    (everyone, _, _), (wins, colour, _) = median_curves(curves, np.array([False, True, True]), 10.0)
     np.testing.assert_allclose(everyone, [60, 30, 20, 10])
     np.testing.assert_allclose(wins, [40, 20, 17.5])
     assert colour == "darkgreen"
-    assert len(_medians(curves, np.zeros(3, dtype=bool), 1.0)) == 1  # no successes, no line
+    assert len(median_curves(curves, np.zeros(3, dtype=bool), 1.0)) == 1  # no successes, no line
 
 
 @pytest.mark.parametrize(
     ("value", "label"), [(1e-3, "10⁻³"), (1.0, "10⁰"), (1e4, "10⁴"), (2e-3, "0.002")]
 )
 def test_log_ticks_are_labelled_in_plain_text(value, label):
-    assert _decade(value) == label
+    assert decade_label(value) == label
 
 
+@pytest.mark.slow
 def test_every_figure_is_written_as_an_opaque_png(tmp_path):
     frame = _frame(np.random.default_rng(1))
     written = [

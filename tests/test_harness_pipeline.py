@@ -42,6 +42,7 @@ def assert_same_rows(a, b):
     )
 
 
+@pytest.mark.slow
 def test_eval_writes_one_row_per_instance_and_method(run_dir):
     frame = load_results(run_dir)
     # A tuned method skips the tuning split (instance 0 of 2).
@@ -69,6 +70,7 @@ def test_eval_writes_one_row_per_instance_and_method(run_dir):
     assert config["sessions"][0]["registrations"] == len(frame)
 
 
+@pytest.mark.slow
 def test_config_records_the_commit_versions_and_method_settings(suite_dir, tmp_path):
     chosen = ["icp_point_to_point", "fgr"]
     run_eval([suite_dir], tmp_path, methods=chosen, limit=1, progress=False)
@@ -91,6 +93,7 @@ def test_config_records_the_commit_versions_and_method_settings(suite_dir, tmp_p
     assert sessions[0]["method_settings"]["fgr"]["fgr"]["maximum_correspondence_distance_voxels"]
 
 
+@pytest.mark.slow
 def test_report_writes_every_table_and_plot(run_dir, tmp_path):
     out = tmp_path / "report"
     assert main(["report", str(run_dir), "--out", str(out)]) == 0
@@ -112,6 +115,7 @@ def test_report_writes_every_table_and_plot(run_dir, tmp_path):
     assert "](table1" not in report and "![Time per registration](time.png)" in report
 
 
+@pytest.mark.slow
 def test_resume_skips_done_pairs_and_reruns_identically(suite_dir, run_dir):
     lines = _lines(run_dir)
     before = load_results(run_dir)
@@ -127,6 +131,7 @@ def test_resume_skips_done_pairs_and_reruns_identically(suite_dir, run_dir):
     assert [s["registrations"] for s in sessions] == [len(lines), 3, 0]
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_same_rows(suite_dir, run_dir, tmp_path):
     chosen = ["icp_point_to_plane", "fpfh_ransac", "spectral"]
     run_eval([suite_dir], tmp_path, methods=chosen, workers=2, limit=1, progress=False)
@@ -137,6 +142,7 @@ def test_two_workers_give_the_same_rows(suite_dir, run_dir, tmp_path):
     assert_same_rows(two, one)
 
 
+@pytest.mark.slow
 def test_resume_refuses_other_settings(suite_dir, run_dir, tmp_path):
     with pytest.raises(ValueError, match="voxel_size"):
         run_eval([suite_dir], run_dir, voxel_size=0.01, progress=False)
@@ -160,6 +166,7 @@ def test_eval_rejects_bad_arguments(suite_dir, tmp_path, kwargs, name):
         run_eval([suite_dir], tmp_path, progress=False, **kwargs)
 
 
+@pytest.mark.slow
 def test_open3d_methods_repeat_bit_for_bit(suite_dir, tmp_path):
     # Open3D sums on several threads in a different order each run; the workers use one.
     chosen = ["icp_point_to_plane", "fpfh_ransac", "fgr", "spectral_global"]

@@ -54,6 +54,7 @@ def assert_same_rows(a, b):
 # ---------------------------------------------------------------------------- Dask
 
 
+@pytest.mark.slow
 def test_local_cluster_gives_the_pool_rows(suite_dir, pool_run, tmp_path):
     pytest.importorskip("dask.distributed", reason="the cluster extra is not installed")
     run_eval(
@@ -166,6 +167,7 @@ def test_sample_is_seeded_and_independent_of_order():
     assert selected_indices(5, condition="full", suite_seed=0, limit=3) == [0, 1, 2]
 
 
+@pytest.mark.slow
 def test_two_shards_into_one_folder_give_the_unsharded_rows(suite_dir, pool_run, tmp_path):
     for shard in ("0/2", "1/2"):
         run_eval([suite_dir], tmp_path, methods=METHODS, limit=2, shard=shard, progress=False)
@@ -175,6 +177,7 @@ def test_two_shards_into_one_folder_give_the_unsharded_rows(suite_dir, pool_run,
     assert len(result_files(tmp_path)) == 2
 
 
+@pytest.mark.slow
 def test_concurrent_sessions_keep_every_row_and_setting(suite_dir, tmp_path):
     """Two eval processes write one folder at the same time."""
     root = str(Path(o3d_spectral.__file__).resolve().parents[1])
@@ -194,6 +197,7 @@ def test_concurrent_sessions_keep_every_row_and_setting(suite_dir, tmp_path):
     assert len(frame) == 4 and set(frame["method"]) == set(METHODS)
 
 
+@pytest.mark.slow
 def test_older_run_folders_are_read_and_resumed(suite_dir, tmp_path):
     """A run written before per-session files (config.json, results.jsonl) is merged
     with a new session's files, and resumed without running its pairs again."""
@@ -216,6 +220,7 @@ def test_older_run_folders_are_read_and_resumed(suite_dir, tmp_path):
 # ---------------------------------------------------------------------------- peers
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("method", "module"), [("kiss_matcher", "kiss_matcher"), ("small_gicp", "small_gicp")]
 )
@@ -227,6 +232,7 @@ def test_peers_run_on_a_tiny_instance(method, module, suite_dir, tmp_path):
     assert frame["transformation"].map(len).eq(4).all()
 
 
+@pytest.mark.slow
 def test_tuned_fpfh_skips_the_tuning_split_and_is_reported_off_it(suite_dir, tmp_path):
     from o3d_spectral.harness.report import make_report
 
@@ -295,6 +301,7 @@ def _eval_with_workers(suite_dir, out) -> tuple[subprocess.Popen, set[int]]:
     return run, processes
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
     run, processes = _eval_with_workers(suite_dir, tmp_path)
@@ -310,6 +317,7 @@ def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
     run.stderr.read()  # a reader of its stderr is not kept waiting
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_interrupted_eval_stops_with_one_line_and_status_130(suite_dir, tmp_path):
     run, processes = _eval_with_workers(suite_dir, tmp_path)

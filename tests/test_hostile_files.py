@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from o3d_spectral._files import atomic_write_text, check_cloud_file
 from o3d_spectral.cli import main
+from o3d_spectral.io._files import atomic_write_text, check_cloud_file
 from o3d_spectral.synthetic.suite import MANIFEST, load_suite, make_suite
 from tests.conftest import sample_model
 
@@ -196,6 +196,7 @@ def _manifest_values():
         max_leaves=8)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
@@ -260,6 +261,7 @@ def _lines(out):
     return [line for file in result_files(out) for line in file.read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_eval_stops_on_a_missing_instance_file_naming_it(suite_dir, tmp_path):
     """Not recorded as the method's failure: the eval stops and says which file."""
     run_eval, load_results, _ = _harness()
@@ -375,7 +377,7 @@ def test_corrupt_session_files_are_named(tmp_path):
 def test_files_are_created_with_the_callers_umask(tmp_path):
     import os
 
-    from o3d_spectral._files import atomic_write_text
+    from o3d_spectral.io._files import atomic_write_text
 
     saved = os.umask(0o027)
     try:

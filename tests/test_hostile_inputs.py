@@ -69,6 +69,7 @@ def _sane(value) -> bool:
     return isinstance(value, int | float | np.integer | np.floating) and math.isfinite(value)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_any_option_value_is_accepted_sanely_or_refused_by_name(data):
@@ -168,6 +169,7 @@ def _check_contract(source_array, target_array, call):
         np.testing.assert_array_equal(outcomes[0], outcomes[1])
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(source=clouds(), shift=st.tuples(*[st.floats(-0.05, 0.05)] * 3),
        call=st.sampled_from(["local", "global"]))
@@ -177,6 +179,7 @@ def test_any_cloud_with_normals_registers_or_is_refused_by_name(source, shift, c
     _check_contract(source, target, call)
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None)
 @example(source=np.c_[np.random.default_rng(0).uniform(-0.1, 0.1, (60, 2)), np.zeros(60)],
          call="local")
@@ -204,6 +207,7 @@ def _model(n=3000, normals=True):
             else np.asarray(cloud.points).copy())
 
 
+@pytest.mark.slow
 def test_threads_give_bit_identical_results_to_serial_calls():
     source = _model(2000, normals=False)
     rng = np.random.default_rng(3)
@@ -345,6 +349,7 @@ def _registers_or_names(name, **arguments):
     return result
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @example(voxel_size="0.02")
 @example(voxel_size=None)
@@ -362,6 +367,7 @@ def test_voxel_size_of_any_type_registers_or_is_refused_by_name(voxel_size):
         assert isinstance(voxel_size, numbers.Real) and not isinstance(voxel_size, bool | np.bool_)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(init=_inits())
 def test_init_of_any_type_registers_or_is_refused_by_name(init):
@@ -401,6 +407,7 @@ def test_complex_and_bool_points_are_refused_by_name(kind):
 # ------------------------------------------------ distance from the origin, large inputs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("distance", [50.0, 80.0])
 def test_pose_does_not_depend_on_the_distance_from_the_origin(distance):
     """A model into a partial view of it, moved whole: the same pose (and the polish kept)
@@ -429,6 +436,7 @@ def test_pose_does_not_depend_on_the_distance_from_the_origin(distance):
     assert far.fitness == pytest.approx(near.fitness, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_polish_and_score_cost_the_cells_not_the_raw_points(monkeypatch):
     """A dense source (200k points, about 300 per 2 cm voxel) is polished and scored one
     point per quarter-voxel cell; the correspondence indices still point into the

@@ -1,5 +1,5 @@
 """Normals: sign checks, orientation, and single views recognised in any frame
-(o3d_spectral.normals), checked on exact shapes and on the bundled real scans."""
+(o3d_spectral.io.normals), checked on exact shapes and on the bundled real scans."""
 
 from __future__ import annotations
 
@@ -11,15 +11,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral.cloud import as_arrays, prepare
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_translation_error,
     translation_error,
 )
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.normals import orient, sensor_direction, view_direction
-from o3d_spectral.signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
+from o3d_spectral.io.cloud import as_arrays, prepare
+from o3d_spectral.io.normals import orient, sensor_direction, view_direction
+from o3d_spectral.io.signs import SIGN_DISAGREEMENT, THIN_WALLS, back_to_back, sign_disagreement
 from tests.conftest import thin_walled_cup
 
 VOXEL = 0.008
@@ -172,6 +172,7 @@ def test_a_view_in_a_world_frame_registers_as_in_its_camera_frame():
     assert abs(in_world.fitness - in_camera.fitness) < 0.05
 
 
+@pytest.mark.slow
 def test_unoriented_normals_are_reoriented_with_a_warning(caplog):
     case = load_cases(["dragon_24"])[0]
     source, target = o3d.geometry.PointCloud(case.source), o3d.geometry.PointCloud(case.target)
@@ -189,6 +190,7 @@ def test_unoriented_normals_are_reoriented_with_a_warning(caplog):
     assert translation_error(result.transformation, case.T_gt, center=centre) < 0.01
 
 
+@pytest.mark.slow
 def test_two_views_are_matched_whole():
     case = load_cases(["dragon_24"])[0]
     result = o3d_spectral.registration_spectral(case.source, case.target, 0.005, case.T_gt)
@@ -196,6 +198,7 @@ def test_two_views_are_matched_whole():
     assert result.target_viewpoint is None
 
 
+@pytest.mark.slow
 def test_a_plane_and_a_run_cut_short_each_log_a_warning(caplog):
     rng = np.random.default_rng(3)
     plane = np.c_[rng.uniform(-0.1, 0.1, (3000, 2)), np.zeros(3000)]

@@ -22,6 +22,7 @@ def test_workers_must_be_a_positive_count():
         o3d_spectral.GlobalSearchOption(workers=0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("condition", ["cluttered", "partial"])
 def test_the_result_is_the_same_to_the_bit_whatever_the_workers(condition):
     """A scene (focused searches, climbs on focused EGIs) and a view whose climbs run

@@ -5,7 +5,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import so3
+from o3d_spectral.spectra import so3
 from tests.conftest import sample_model
 
 VOXEL = 0.008
@@ -22,6 +22,7 @@ def pair():
     return source, target
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("call", ["registration_spectral", "registration_spectral_global"])
 def test_a_prepared_source_gives_the_same_result(pair, call):
     """Equal to rounding: the registration works in a frame centred on the target, where
@@ -34,6 +35,7 @@ def test_a_prepared_source_gives_the_same_result(pair, call):
     assert plain.fitness == pytest.approx(prepared.fitness, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_prepared_source_far_from_the_origin_gives_the_same_pose(pair):
     """Clouds far away are registered in a frame centred on the target: the prepared
     cloud is moved there, equal to the cloud's own preparation to rounding."""

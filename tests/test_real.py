@@ -20,9 +20,9 @@ import open3d as o3d
 import pytest
 from scipy.spatial import cKDTree
 
-from o3d_spectral import so3
 from o3d_spectral.harness import real
 from o3d_spectral.harness.real import GROUPS, load_cases, randomly_rotated
+from o3d_spectral.spectra import so3
 
 _reg = o3d.pipelines.registration
 CASES = load_cases()
@@ -171,7 +171,7 @@ def test_data_folder_from_the_environment(monkeypatch, tmp_path):
 def test_normal_modes(name):
     """Oriented normals face each scan's sensor (turned with the source) and agree along
     the surface; unoriented ones are Open3D's estimate, with signs that disagree."""
-    from o3d_spectral.signs import SIGN_DISAGREEMENT, sign_disagreement
+    from o3d_spectral.io.signs import SIGN_DISAGREEMENT, sign_disagreement
 
     case = next(c for c in CASES if c.name == name)
     turned, M = randomly_rotated(case, seed=5)

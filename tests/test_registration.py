@@ -5,16 +5,17 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import search, so3
+from o3d_spectral import search
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
     symmetric_translation_error,
     translation_error,
 )
+from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
-from o3d_spectral.synthetic.suite import instance_rng
 from tests.conftest import sample_model
+from tests.scene_fixtures import load_scene
 
 VOXEL = 0.008
 
@@ -38,6 +39,7 @@ def moved_copy(cloud, T):
 C1_OBJECTS = ["mustard_bottle", "power_drill", "mug", "cracker_box", "banana", "scissors"]
 
 
+@pytest.mark.slow
 def test_paper_c1_local_mode_accuracy():
     """The paper's C-1: a full model against its moved copy, rotations up to 45 deg and
     translations up to 5 cm, 8 mm voxels: <= 1 deg and <= 2 mm in >= 95% of 60 cases,
@@ -239,6 +241,7 @@ def test_global_call_rejects_an_euler_grid_too_coarse_for_the_bandwidth(pair):
         )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("with_normals", [True, False])
 def test_point_to_plane_refinement_polishes_the_spectral_pose(pair, with_normals):
     source, target, T = pair
@@ -274,6 +277,7 @@ def test_variants_converge_on_a_small_motion(option):
     assert translation_error(result.transformation, T, center=center) < 0.004
 
 
+@pytest.mark.slow
 def test_global_search_recovers_a_large_rotation():
     source = sample_model("power_drill", 6000)
     T = np.eye(4)
@@ -291,6 +295,7 @@ def test_global_search_recovers_a_large_rotation():
     assert rotation_error(local.transformation, T) > 10.0  # the local law alone fails here
 
 
+@pytest.mark.slow
 def test_coarse_placement_of_two_views_keeps_the_candidate_the_full_placement_ranks_first():
     """Two dragon scans 24 degrees apart: the 16 candidates the coarse grid ranks best hold
     the one the full grid places best, at the same place."""
@@ -361,9 +366,9 @@ def _global_errors(instance, **settings) -> tuple[float, float]:
 
 @pytest.mark.slow
 def test_focused_egi_finds_what_the_whole_scene_egi_misses():
-    """Instance 2 of the cluttered suite (seed 0): the whole scene's EGI alone points the
-    cracker box the wrong way; focused on where it was located, it registers it."""
-    instance = make_instance("cluttered", "cracker_box", rng=instance_rng(0, 2))
+    """A cracker box in a cluttered scene (stored): the whole scene's EGI alone points
+    the box the wrong way; focused on where it was located, it registers it."""
+    instance = load_scene("cluttered_cracker_box")
     errors = {
         focus: _global_errors(instance, search=o3d_spectral.GlobalSearchOption(egi_focus=focus))
         for focus in (True, False)
@@ -374,12 +379,11 @@ def test_focused_egi_finds_what_the_whole_scene_egi_misses():
 
 @pytest.mark.slow
 def test_global_search_returns_its_best_scoring_iterate():
-    """Instance 1 of the partial suite (seed 0), a bowl seen from one side, with the
-    polish off: the law climbs from the right pose to a wrong one (its last iterate is
-    far off); the global call returns the best-scoring iterate of all its climbs
-    (``hypotheses[0]``), which is right. (While the bowl's thin wall was oriented as one
-    outward sheet, both were off.) The confirmation, which would skip the climbs, is off."""
-    instance = make_instance("partial", "bowl", rng=instance_rng(0, 1))
+    """A bowl seen from one side (stored), with the polish off: the law climbs from the
+    right pose to a wrong one (its last iterate is far off); the global call returns the
+    best-scoring iterate of all its climbs (``hypotheses[0]``), which is right. The
+    confirmation, which would skip the climbs, is off."""
+    instance = load_scene("partial_bowl_side")
     T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
     result = o3d_spectral.registration_spectral_global(
         instance.source, instance.target, VOXEL, refinement=None,
@@ -395,12 +399,12 @@ def test_global_search_returns_its_best_scoring_iterate():
 
 @pytest.mark.slow
 def test_a_view_into_a_thin_walled_bowl_registers():
-    """Instance 121 of the partial suite (seed 0): the bowl seen from above, into it. Its
+    """A bowl seen from above, into it (stored). Its
     wall (0.8 mm) is thinner than its points' spacing, so neighbouring normals point away
     from each other: the bowl is read two-sided and its inside matched as the camera saw
     it. Oriented again as one outward sheet instead, its inside faced away from the
     camera, was culled, and the view was missed."""
-    instance = make_instance("partial", "bowl", rng=instance_rng(0, 121))
+    instance = load_scene("partial_bowl_above")
     result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
     assert result.source_reading.two_sided and not result.target_reading.two_sided
     assert result.source_reading.normals_from == "given"
@@ -412,10 +416,10 @@ def test_a_view_into_a_thin_walled_bowl_registers():
 
 @pytest.mark.slow
 def test_focus_on_several_places_finds_an_object_the_first_place_misses():
-    """Instance 47 of the cluttered suite (seed 0), a tomato soup can among other
-    objects: the best whole-scene hypotheses put it elsewhere, so the EGI focused on that
-    place alone misleads; focused on the three best distinct places, it is registered."""
-    instance = make_instance("cluttered", "tomato_soup_can", rng=instance_rng(0, 47))
+    """A tomato soup can among other objects (stored): the best whole-scene hypotheses
+    put it elsewhere, so the EGI focused on that place alone misleads; focused on the
+    three best distinct places, it is registered."""
+    instance = load_scene("cluttered_tomato_soup_can")
     errors = {
         places: _global_errors(
             instance, search=o3d_spectral.GlobalSearchOption(focus_places=places)
@@ -428,11 +432,11 @@ def test_focus_on_several_places_finds_an_object_the_first_place_misses():
 
 @pytest.mark.slow
 def test_fewer_whole_scene_hypotheses_leave_the_clutter_out():
-    """Instance 45 of the cluttered suite (seed 0), a power drill: with the whole scene's
+    """A power drill in a cluttered scene (stored): with the whole scene's
     32 highest EGI peaks placed over the scene, the call ends at another place (20 cm
     off) turned 173 degrees; with the default 16, which only have to find the places the
     EGI is focused on, it registers."""
-    instance = make_instance("cluttered", "power_drill", rng=instance_rng(0, 45))
+    instance = load_scene("cluttered_power_drill")
     errors = {
         n: _global_errors(instance, search=o3d_spectral.GlobalSearchOption(scene_hypotheses=n))
         for n in (16, 32)
@@ -442,12 +446,13 @@ def test_fewer_whole_scene_hypotheses_leave_the_clutter_out():
     assert errors[32][0] > 90.0
 
 
+@pytest.mark.slow
 def test_wide_refinement_turns_a_mug_the_tight_one_leaves():
-    """Instance 198 of the full suite (seed 0), a mug: the law ends 17 degrees off about
+    """A mug against a full model view (stored): the law ends 17 degrees off about
     its axis, where the handle lies beyond the 0.4-voxel ICP's correspondences; the ICP
     after a 1-voxel pass fits better and is kept. The confirmation, whose short polish
     would bring the pose in before either, is off."""
-    instance = make_instance("full", "mug", rng=instance_rng(0, 198))
+    instance = load_scene("full_mug")
     search = o3d_spectral.GlobalSearchOption(confirm=False)
     tight = _global_errors(instance, search=search,
                            refinement=o3d_spectral.RefinementOption(wide_distance=None))
@@ -458,7 +463,7 @@ def test_wide_refinement_turns_a_mug_the_tight_one_leaves():
 
 @pytest.mark.slow
 def test_refinement_that_leaves_the_surface_keeps_the_law_pose(monkeypatch):
-    """Instance 154 of the occluded suite (seed 0), scissors, from the wrong pose the
+    """Occluded scissors (stored), from the wrong pose the
     global search once returned there (recorded below): few points lie within 0.4 voxel.
     The point-to-plane ICP linearised about the camera's origin once slid off the surface
     from it (90 m away); about the posed source it stays on the scene. Should an ICP
@@ -466,7 +471,7 @@ def test_refinement_that_leaves_the_surface_keeps_the_law_pose(monkeypatch):
     from o3d_spectral import refinement
     from o3d_spectral.refinement import point_to_plane_refinement, refine
 
-    instance = make_instance("occluded", "scissors", rng=instance_rng(0, 154))
+    instance = load_scene("occluded_scissors")
     source, target = instance.source, instance.target
     wrong = np.array([
         [0.8486501462650768, 0.00698964623331383, 0.5289083796743979, -0.3314901841246018],

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import egi, rotation, so3, wigner
+from o3d_spectral.spectra import egi, rotation, so3, wigner
 
 
 @pytest.fixture

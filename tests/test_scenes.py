@@ -13,7 +13,7 @@ from o3d_spectral.synthetic.models import load_model
 from o3d_spectral.synthetic.sampling import model_cloud
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
-from o3d_spectral.synthetic.tabletop import _place_on_table
+from o3d_spectral.synthetic.tabletop import place_on_table
 
 
 def _distance_to_mesh(mesh, pose, points):
@@ -33,6 +33,7 @@ def _noise_bound(points, options):
     return 5 * options.noise.sigma(z) + step + 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("condition", CONDITIONS)
 @pytest.mark.parametrize("name", ["mug", "cracker_box"])
 def test_ground_truth_puts_the_source_on_the_target_object(condition, name):
@@ -57,6 +58,7 @@ def test_ground_truth_puts_the_source_on_the_target_object(condition, name):
     assert np.median(cKDTree(moved).query(target)[0]) < 0.004
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("condition", CONDITIONS)
 def test_same_seed_same_instance(condition):
     a = make_instance(condition, "banana", rng=np.random.default_rng(5))
@@ -67,6 +69,7 @@ def test_same_seed_same_instance(condition):
     assert a.metadata == b.metadata
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("requested", [0.2, 0.45, 0.7])
 def test_measured_occlusion_matches_the_request(requested):
     options = SceneOptions()
@@ -84,6 +87,7 @@ def test_measured_occlusion_matches_the_request(requested):
     assert abs(1 - len(inst.target.points) / len(alone.points) - requested) <= 0.05
 
 
+@pytest.mark.slow
 def test_partial_view_sees_the_whole_object_at_working_distance():
     options = SceneOptions()
     for seed in range(3):
@@ -97,6 +101,7 @@ def test_partial_view_sees_the_whole_object_at_working_distance():
         assert 0.1 < inst.metadata["visible_fraction"] < 0.9
 
 
+@pytest.mark.slow
 def test_cluttered_scene_has_the_table_and_a_visible_object():
     inst = make_instance("cluttered", "mustard_bottle", rng=np.random.default_rng(8))
     meta = inst.metadata
@@ -108,9 +113,10 @@ def test_cluttered_scene_has_the_table_and_a_visible_object():
     assert np.all(np.einsum("ij,ij->i", normals, points) < 0)
 
 
+@pytest.mark.slow
 def test_objects_on_the_table_rest_on_it_without_overlap():
     names = ["power_drill", "bowl", "mug", "cracker_box", "banana", "scissors", "foam_brick"]
-    placed, poses = _place_on_table(names, np.random.default_rng(4))
+    placed, poses = place_on_table(names, np.random.default_rng(4))
     assert len(placed) >= 3
     clouds = []
     for name, pose in zip(placed, poses, strict=True):

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from o3d_spectral import SpectralRegistrationOption, servo, so3
+from o3d_spectral import SpectralRegistrationOption, servo
 from o3d_spectral.servo import control
+from o3d_spectral.spectra import so3
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +93,7 @@ def test_inverse_kinematics_reaches_a_pose_within_limits(arm):
     assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 1e-4
 
 
+@pytest.mark.slow
 def test_draw_trial_redraws_the_desired_pose_when_no_start_fits(arm):
     # Seed 35's first desired pose admits no start meeting the constraints (sample_start
     # raises); another desired pose is drawn. Seeds whose first pose fits are unchanged.
@@ -109,6 +111,7 @@ def test_draw_trial_redraws_the_desired_pose_when_no_start_fits(arm):
     np.testing.assert_array_equal(drawn.q, expected.q)
 
 
+@pytest.mark.slow
 def test_short_servo_run_converges_and_respects_joint_limits(arm):
     rng = np.random.default_rng(7)
     sensor = servo.Sensor()
@@ -135,6 +138,7 @@ def test_short_servo_run_converges_and_respects_joint_limits(arm):
     assert all(np.all(np.abs(c.qdot) <= arm.velocity_limit + 1e-12) for c in run.cycles)
 
 
+@pytest.mark.slow
 def test_gradient_test_waits_for_the_finest_smoothing_level(arm):
     # Started at the desired pose, the coarse level's correction is already tiny; the run
     # must still make one cycle at the fine level before the gradient test may stop it.

@@ -5,9 +5,10 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral import GlobalSearchOption, SpectralRegistrationOption, so3
+from o3d_spectral import GlobalSearchOption, SpectralRegistrationOption
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.servo import ServoLaw
+from o3d_spectral.spectra import so3
 from tests.conftest import sample_model
 from tests.test_registration import random_motion
 
@@ -70,6 +71,7 @@ def test_later_law_cycles_search_the_shift_about_what_the_last_one_left():
     np.testing.assert_allclose(second.evaluation.translation, whole.translation, atol=4e-4)
 
 
+@pytest.mark.slow
 def test_global_steps_head_for_a_far_rotation_then_hand_over_to_the_law():
     """From 120 degrees, beyond the law's reach, the global search's correction is the
     true one (to the grid's resolution), its increments follow the gains, and the law

@@ -6,7 +6,6 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral import so3, so3fft
 from o3d_spectral.harness.real import (
     case_errors,
     is_success,
@@ -14,7 +13,8 @@ from o3d_spectral.harness.real import (
     randomly_rotated,
     rotation_seed,
 )
-from o3d_spectral.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
+from o3d_spectral.spectra import so3, so3fft
+from o3d_spectral.spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 
 
 def _object(rng: np.random.Generator) -> np.ndarray:
@@ -61,6 +61,7 @@ def test_shell_hypotheses_must_be_a_count():
         o3d_spectral.GlobalSearchOption(shell_hypotheses=-1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pair, off", [
     # 48 degrees apart (about 30% overlap): the EGIs share too little, the shells'
     # candidates find it (the EGI alone misses by 157 deg; the sweep, off here, finds it too).

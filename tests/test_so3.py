@@ -4,7 +4,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import so3
+from o3d_spectral.spectra import so3
 
 
 def test_hat_is_cross_product(rng):
@@ -62,6 +62,7 @@ rotation_vectors = st.lists(
 ).filter(lambda w: np.linalg.norm(w) < np.pi - 1e-6)
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(rotation_vectors)
 def test_log_inverts_exp_inside_the_ball_of_radius_pi(w):

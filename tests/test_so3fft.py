@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import egi, harmonics, rotation, so3, so3fft, wigner
+from o3d_spectral.spectra import egi, harmonics, rotation, so3, so3fft, wigner
 
 
 @pytest.fixture
@@ -118,10 +118,10 @@ def test_stacked_grid_is_the_sum_of_each_pair_s_grid(rng):
 
 def test_change_of_basis_equals_the_dense_products():
     """W d W^H by slices equals the dense complex products, for every bandwidth shape."""
-    from o3d_spectral.so3fft import _change_basis, _diagonalising_basis
+    from o3d_spectral.spectra.so3fft import change_basis, diagonalising_basis
 
     rng = np.random.default_rng(0)
     for B in (1, 2, 5, 16):
         d = rng.standard_normal((3, B, 2 * B - 1, 2 * B - 1))
-        W = _diagonalising_basis(B)
-        np.testing.assert_allclose(_change_basis(d), W @ d @ W.conj().T, atol=1e-13)
+        W = diagonalising_basis(B)
+        np.testing.assert_allclose(change_basis(d), W @ d @ W.conj().T, atol=1e-13)

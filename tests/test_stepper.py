@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral.egi import harmonics_table
+from o3d_spectral.spectra.egi import harmonics_table
 from tests.conftest import sample_model, thin_walled_cup
 
 
@@ -106,15 +106,14 @@ def test_focused_egi_is_that_of_the_normals_in_the_ball():
 
 
 def test_visible_correlation_ranks_the_rotation_of_a_view_first():
-    """Instance 21 of the partial suite (seed 0), a power drill seen from one side: the
+    """A power drill seen from one side (stored): the
     whole model's EGI correlation puts the right rotation 7th among its peaks; weighted
     and normalised as the sensor sees it (``search_visibility``), it is the first."""
     from o3d_spectral.harness.errors import symmetric_rotation_error
-    from o3d_spectral.so3fft import peaks
-    from o3d_spectral.synthetic.scenes import make_instance
-    from o3d_spectral.synthetic.suite import instance_rng
+    from o3d_spectral.spectra.so3fft import peaks
+    from tests.scene_fixtures import load_scene
 
-    instance = make_instance("partial", "power_drill", rng=instance_rng(0, 21))
+    instance = load_scene("partial_power_drill")
     ranks = {}
     for visibility in (True, False):
         stepper = o3d_spectral.SpectralStepper(instance.target, 0.008)

@@ -23,16 +23,19 @@ def occluded_suite(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_same_seed_gives_identical_files_whatever_the_workers(occluded_suite, tmp_path):
     make_suite("occluded", 3, 7, tmp_path, workers=2, progress=False)
     assert _files(tmp_path) == _files(occluded_suite)
 
 
+@pytest.mark.slow
 def test_another_seed_gives_another_suite(occluded_suite, tmp_path):
     make_suite("occluded", 3, 8, tmp_path, progress=False)
     assert _files(tmp_path)[MANIFEST] != _files(occluded_suite)[MANIFEST]
 
 
+@pytest.mark.slow
 def test_manifest_lists_every_instance(occluded_suite):
     manifest = json.loads((occluded_suite / MANIFEST).read_text())
     assert manifest["format"] == "o3d-spectral-suite"
@@ -46,6 +49,7 @@ def test_manifest_lists_every_instance(occluded_suite):
         assert abs(entry["occlusion"] - entry["occlusion_requested"]) <= 0.05
 
 
+@pytest.mark.slow
 def test_loaded_instances_match_the_generated_ones(occluded_suite):
     from o3d_spectral.synthetic.scenes import make_instance
     from o3d_spectral.synthetic.suite import instance_rng
@@ -89,6 +93,7 @@ def _run(argv):
     return args.func(args)
 
 
+@pytest.mark.slow
 def test_cli_makes_and_shows_a_suite(tmp_path):
     out = tmp_path / "full"
     argv = ["make-suite", "full", "--n", "2", "--seed", "1", "--out", str(out), "--quiet"]

@@ -13,13 +13,13 @@ from o3d_spectral.harness.errors import (
     symmetric_translation_error,
     translation_error,
 )
-from o3d_spectral.harness.symmetry import (
+from o3d_spectral.synthetic.models import load_model, model_names
+from o3d_spectral.synthetic.symmetry import (
     SYMMETRIC_MODELS,
     Symmetry,
     model_symmetry,
     refine_axis,
 )
-from o3d_spectral.synthetic.models import load_model, model_names
 
 
 def _pose(rotvec, t):
@@ -150,7 +150,7 @@ def test_unknown_model_is_rejected():
 def test_translation_error_at_a_centre_ignores_the_lever_arm():
     """A rotation about the object's centroid moves the centroid nowhere: zero error there,
     though the source frame's origin (1 m away) moves by 2 sin(angle/2) m."""
-    from o3d_spectral import so3
+    from o3d_spectral.spectra import so3
 
     center = np.array([0.0, 0.0, 1.0])
     T_gt = np.eye(4)

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from o3d_spectral.fft import RealFFT3, padded_forward
-from o3d_spectral.grid import Lattice, splat
-from o3d_spectral.translation import cross_power_peak, peak_heights, phase_correlation
+from o3d_spectral.spectra.fft import RealFFT3, padded_forward
+from o3d_spectral.spectra.grid import Lattice, splat
+from o3d_spectral.spectra.translation import cross_power_peak, peak_heights, phase_correlation
 
 
 @pytest.mark.parametrize("shift", [(0, 0, 0), (3, -5, 7), (-11, 0, 2), (15, 15, -16)])
@@ -95,7 +95,7 @@ def test_mismatched_grids_rejected():
 def test_fft_library_is_chosen_by_shape_and_both_transform_alike():
     """FFTW for sides that are all powers of two (or measured plans), pocketfft
     otherwise; either way the forward transform is numpy's and inverts exactly."""
-    from o3d_spectral import fft
+    from o3d_spectral.spectra import fft
 
     if fft.pyfftw is not None:
         assert fft.backend((32, 64, 16)) == "pyfftw"

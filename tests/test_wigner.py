@@ -3,7 +3,7 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import egi, harmonics, so3, wigner
+from o3d_spectral.spectra import egi, harmonics, so3, wigner
 from tests.conftest import band_limited
 
 B = 10

@@ -31,10 +31,10 @@ from importlib import metadata
 
 from o3d_spectral._extras import MissingExtraError, missing_extra
 from o3d_spectral.cli._output import (
-    _logging_to_stderr,
-    _stdout_for_results_only,
     is_terminal,
+    logging_to_stderr,
     results,
+    stdout_for_results_only,
 )
 
 __all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "results",
@@ -161,7 +161,7 @@ def _fail(args: argparse.Namespace, error: Exception, code: int) -> int:
     return code
 
 
-def _status_label(args: argparse.Namespace) -> str | None:
+def status_label(args: argparse.Namespace) -> str | None:
     """The status line's label for a command that wants one (``status`` default set by
     the command), on a terminal, without ``-q``; else None."""
     if getattr(args, "status", False) and show_progress(args):
@@ -175,8 +175,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exit_:  # --help, --version, or a usage error argparse printed
         return exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
-    with _stdout_for_results_only(), _logging_to_stderr(
-        _log_level(args), open3d=getattr(args, "open3d", True), status=_status_label(args)
+    with stdout_for_results_only(), logging_to_stderr(
+        _log_level(args), open3d=getattr(args, "open3d", True), status=status_label(args)
     ):
         log.debug("arguments: %s", {k: v for k, v in vars(args).items() if k != "func"})
         start = time.perf_counter()

@@ -56,7 +56,7 @@ def _writes_to(stream: TextIO, fd: int) -> bool:
 
 
 @contextlib.contextmanager
-def _stdout_for_results_only() -> Iterator[None]:
+def stdout_for_results_only() -> Iterator[None]:
     """While the block runs, what is written to stdout goes to stderr, by Python code
     (``sys.stdout``: Open3D's Python module prints its log through it) or by C code (file
     descriptor 1), and :func:`results` is the standard output: it holds the command's
@@ -197,7 +197,7 @@ class _StatusFeed(logging.Handler):
 
 
 @contextlib.contextmanager
-def _logging_to_stderr(level: int, *, open3d: bool = True,
+def logging_to_stderr(level: int, *, open3d: bool = True,
                        status: str | None = None) -> Iterator[None]:
     """Show the package logger's records from ``level`` up on stderr, and Open3D's messages
     from the matching level, while a command runs; restored afterwards, since ``main`` may
@@ -205,7 +205,7 @@ def _logging_to_stderr(level: int, *, open3d: bool = True,
     False for a command that does not use Open3D (``report``: its import takes seconds).
     ``status``: the label of a :class:`StatusLine` to show meanwhile (on a terminal)."""
     if not open3d:
-        with _package_logging(level, status):
+        with package_logging(level, status):
             yield
         return
     import open3d as o3d
@@ -217,14 +217,14 @@ def _logging_to_stderr(level: int, *, open3d: bool = True,
         logging.INFO: verbosity.Info, logging.DEBUG: verbosity.Debug,
     }[level])
     try:
-        with _package_logging(level, status):
+        with package_logging(level, status):
             yield
     finally:
         o3d.utility.set_verbosity_level(saved)
 
 
 @contextlib.contextmanager
-def _package_logging(level: int, status: str | None = None) -> Iterator[None]:
+def package_logging(level: int, status: str | None = None) -> Iterator[None]:
     """The package logger's records from ``level`` up on stderr while the block runs, and
     with ``status`` a status line labelled so fed by its records from INFO up."""
     package = logging.getLogger("o3d_spectral")

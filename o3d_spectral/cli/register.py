@@ -108,7 +108,7 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
     naming the file."""
     import open3d as o3d
 
-    from o3d_spectral._files import check_cloud_file, check_finite
+    from o3d_spectral.io._files import check_cloud_file, check_finite
 
     check_cloud_file(path)
     with _open3d_failures() as failures:

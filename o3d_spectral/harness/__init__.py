@@ -1,6 +1,5 @@
 """Evaluation: spectral registration against Open3D's ICP, FPFH-RANSAC and FGR.
 
-* :mod:`~o3d_spectral.harness.symmetry`: symmetry groups of the bundled models;
 * :mod:`~o3d_spectral.harness.errors`: pose errors, plain and symmetry-aware;
 * :mod:`~o3d_spectral.harness.methods`: the methods, registered by name with their settings;
 * :mod:`~o3d_spectral.harness.peers`: KISS-Matcher, small_gicp (when installed), and
@@ -16,9 +15,10 @@
 
 The loop, tables and plots need the ``harness`` extra (pandas, matplotlib, tqdm):
 ``pip install 'o3d-spectral[harness]'``; Dask clusters the ``cluster`` extra, the peers the
-``peers`` extra. The names below are imported from their modules on
-first access, so that importing one module (the scene generator imports
-:mod:`~o3d_spectral.harness.symmetry`) does not import them all.
+``peers`` extra. The names below are imported from their modules on first access, so
+that importing one module does not import them all. ``Symmetry`` and ``model_symmetry``
+live with the models (:mod:`~o3d_spectral.synthetic.symmetry`), which the scene generator
+and the pose errors both use.
 """
 
 from o3d_spectral._lazy import lazy_attributes
@@ -48,14 +48,14 @@ __getattr__ = lazy_attributes(
     __name__,
     {
         "SuccessCriteria": "metrics",
-        "Symmetry": "symmetry",
+        "Symmetry": "..synthetic.symmetry",
         "convergence_curves": "metrics",
         "get_method": "methods",
         "instance_metrics": "metrics",
         "load_results": "records",
         "method_names": "methods",
         "method_settings": "methods",
-        "model_symmetry": "symmetry",
+        "model_symmetry": "..synthetic.symmetry",
         "register_method": "methods",
         "register_spectral_variant": "methods",
         "registration_fit": "metrics",

@@ -45,7 +45,7 @@ def pyplot():
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
-def _decade(value: float, _position: int | None = None) -> str:
+def decade_label(value: float, _position: int | None = None) -> str:
     """A log axis's tick label: ``10⁻³`` at a decade, in plain text (matplotlib's default
     ``$10^{-3}$`` goes through its TeX parser, whose grammar alone took 0.15 s to build)."""
     exponent = np.log10(value) if value > 0 else np.nan
@@ -55,14 +55,14 @@ def _decade(value: float, _position: int | None = None) -> str:
 
 
 def log_axis(ax, which: str = "y") -> None:
-    """A log scale with ticks and labels (:func:`_decade`) at the decades only: the minor
+    """A log scale with ticks and labels (:func:`decade_label`) at the decades only: the minor
     ticks of a log axis (eight a decade, each with its label and grid line) took most of
     a report's time."""
     ticker = require("matplotlib.ticker")
     (ax.set_yscale if which == "y" else ax.set_xscale)("log")
     axis = ax.yaxis if which == "y" else ax.xaxis
     axis.set_minor_locator(ticker.NullLocator())
-    axis.set_major_formatter(ticker.FuncFormatter(_decade))
+    axis.set_major_formatter(ticker.FuncFormatter(decade_label))
 
 
 def figure(

@@ -71,7 +71,7 @@ def _lines(curves: list[list[float]], scale: float) -> list[np.ndarray]:
     return np.split(points, ends[:-1])
 
 
-def _padded(curves: list[list[float]]) -> np.ndarray:
+def padded_curves(curves: list[list[float]]) -> np.ndarray:
     """Curves of unequal length as rows, each continued with its last value (a run that
     stopped keeps its final error)."""
     lengths = np.array([len(c) for c in curves])
@@ -81,10 +81,10 @@ def _padded(curves: list[list[float]]) -> np.ndarray:
     return values[starts[:, None] + steps]
 
 
-def _medians(curves: list[list[float]], success: np.ndarray, scale: float) -> list[tuple]:
+def median_curves(curves: list[list[float]], success: np.ndarray, scale: float) -> list[tuple]:
     """The median by iteration over all ``curves`` (black) and over the successful runs'
     (dark green), each as long as the longest of its curves, as (errors, colour, label)."""
-    padded = scale * _padded(curves)
+    padded = scale * padded_curves(curves)
     longest_win = max((len(c) for c, won in zip(curves, success, strict=True) if won), default=0)
     subsets = [(padded, "k", "median")]
     subsets += [(padded[success, :longest_win], "darkgreen", "median of successes")]
@@ -102,7 +102,7 @@ def _panel(runs: pd.DataFrame, column: str, scale: float) -> _Panel:
     success = runs["success"].astype(bool).to_numpy()
     shown = curves[:_MAX_CURVES]
     colours = ["tab:green" if won else "tab:red" for won in success[: len(shown)]]
-    return _Panel(_lines(shown, scale), colours, _medians(curves, success, scale))
+    return _Panel(_lines(shown, scale), colours, median_curves(curves, success, scale))
 
 
 def _method_panels(runs: pd.DataFrame, suites: list[tuple[str, str]]) -> list[_Panel]:

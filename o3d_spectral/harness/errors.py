@@ -2,7 +2,7 @@
 
 Following the BOP benchmark (Hodan et al., ECCV 2020), a pose estimate ``T_est`` of a
 symmetric object is as good as its best match among the equivalent ground truths
-``T_gt @ S`` over the object's symmetry group (:class:`~o3d_spectral.harness.symmetry.Symmetry`);
+``T_gt @ S`` over the object's symmetry group (:class:`~o3d_spectral.synthetic.symmetry.Symmetry`);
 the ``symmetric_*`` errors and :func:`mssd` minimise over the group, the plain errors do not.
 
 All transforms are 4x4 float64 arrays mapping source points onto target points
@@ -19,7 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.pose_errors import (
+    angle_from_trace,
+    as_rotation,
+    as_transform,
+    rotation_error,
+    shifted,
+    translation_error,
+)
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = [
     "mssd",
@@ -28,69 +36,6 @@ __all__ = [
     "symmetric_translation_error",
     "translation_error",
 ]
-
-
-def _as_rotation(transform: np.ndarray, name: str) -> np.ndarray:
-    transform = np.asarray(transform, dtype=float)
-    if transform.shape not in ((3, 3), (4, 4)):
-        raise ValueError(f"{name} must be 3x3 or 4x4, got shape {transform.shape}")
-    return transform[:3, :3]
-
-
-def _as_transform(transform: np.ndarray, name: str) -> np.ndarray:
-    transform = np.asarray(transform, dtype=float)
-    if transform.shape != (4, 4):
-        raise ValueError(f"{name} must be 4x4, got shape {transform.shape}")
-    return transform
-
-
-def _angle_from_trace(trace: np.ndarray | float) -> float:
-    return float(np.rad2deg(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))))
-
-
-def rotation_error(T_est: np.ndarray, T_gt: np.ndarray) -> float:
-    """Angle of ``R_gt^T R_est`` in degrees: ``arccos((tr(R_gt^T R_est) - 1) / 2)``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4) or (3, 3)
-        Estimated and true source-to-target transforms (only the rotations are used).
-
-    Returns
-    -------
-    float
-        Error in degrees, in [0, 180].
-    """
-    r_est, r_gt = _as_rotation(T_est, "T_est"), _as_rotation(T_gt, "T_gt")
-    return _angle_from_trace(np.trace(r_gt.T @ r_est))
-
-
-def _shifted(transform: np.ndarray, center: np.ndarray | None) -> np.ndarray:
-    """``transform @ Tr(center)``: the motion seen from a source frame centred on ``center``."""
-    if center is None:
-        return transform
-    shift = np.eye(4)
-    shift[:3, 3] = np.asarray(center, dtype=np.float64).reshape(3)
-    return transform @ shift
-
-
-def translation_error(
-    T_est: np.ndarray, T_gt: np.ndarray, *, center: np.ndarray | None = None
-) -> float:
-    """Distance (m) between where two 4x4 transforms put the source point ``center``.
-
-    Parameters
-    ----------
-    T_est, T_gt : ndarray, shape (4, 4)
-    center : ndarray, shape (3,), optional
-        Source point (m) at which the error is measured; the source frame's origin when
-        omitted (the difference of the translations). The object's centroid makes the
-        error independent of where the source frame's origin lies: far from the object,
-        the origin turns every rotation error into a large translation error.
-    """
-    t_est = _shifted(_as_transform(T_est, "T_est"), center)
-    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
-    return float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
 
 
 def symmetric_rotation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symmetry) -> float:
@@ -108,7 +53,7 @@ def symmetric_rotation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symm
     symmetry : Symmetry
         The object's symmetry group in the source frame (e.g. ``Instance.symmetry``).
     """
-    r_est, r_gt = _as_rotation(T_est, "T_est"), _as_rotation(T_gt, "T_gt")
+    r_est, r_gt = as_rotation(T_est, "T_est"), as_rotation(T_gt, "T_gt")
     best = -np.inf
     for d in symmetry.discrete:
         a_mat = r_gt.T @ r_est @ d[:3, :3].T
@@ -123,7 +68,7 @@ def symmetric_rotation_error(T_est: np.ndarray, T_gt: np.ndarray, symmetry: Symm
             [a_mat[2, 1] - a_mat[1, 2], a_mat[0, 2] - a_mat[2, 0], a_mat[1, 0] - a_mat[0, 1]]
         )
         best = max(best, along + np.hypot(p, q))
-    return _angle_from_trace(best)
+    return angle_from_trace(best)
 
 
 def symmetric_translation_error(
@@ -140,8 +85,8 @@ def symmetric_translation_error(
         back = np.eye(4)
         back[:3, 3] = -np.asarray(center, dtype=np.float64).reshape(3)
         symmetry = symmetry.transformed(back)
-    t_est = _shifted(_as_transform(T_est, "T_est"), center)
-    t_gt = _shifted(_as_transform(T_gt, "T_gt"), center)
+    t_est = shifted(as_transform(T_est, "T_est"), center)
+    t_gt = shifted(as_transform(T_gt, "T_gt"), center)
     # In the source frame: translation(T_gt @ C @ D) = t_gt + R_gt (c + R_C (t_D - c)).
     w = t_gt[:3, :3].T @ (t_est[:3, 3] - t_gt[:3, 3]) - symmetry.center
     best = np.inf
@@ -180,7 +125,7 @@ def mssd(
     step : float, optional
         Sampling step (radians) of a continuous axis; the minimum is over this sampling.
     """
-    t_est, t_gt = _as_transform(T_est, "T_est"), _as_transform(T_gt, "T_gt")
+    t_est, t_gt = as_transform(T_est, "T_est"), as_transform(T_gt, "T_gt")
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must have shape (N, 3), got {points.shape}")

@@ -73,7 +73,7 @@ def _panels(
     return fig, axes, suites
 
 
-def _success_by_angle(runs: pd.DataFrame) -> np.ndarray:
+def success_by_angle(runs: pd.DataFrame) -> np.ndarray:
     """Share of successes per bin of :data:`ANGLE_BINS_DEG` (NaN where a bin is empty):
     bins closed on the right, the first also on the left, as ``pandas.cut`` with
     ``include_lowest``; runs whose success is unknown are left out."""
@@ -100,7 +100,7 @@ def plot_success_vs_angle(frame: pd.DataFrame, path: Path) -> Path:
     centres = 0.5 * (ANGLE_BINS_DEG[1:] + ANGLE_BINS_DEG[:-1])
     for ax, (suite, _) in zip(axes[0], suites, strict=True):
         for method, style in styles.items():
-            rate = _success_by_angle(cells.get((suite, method), empty))
+            rate = success_by_angle(cells.get((suite, method), empty))
             ax.plot(centres, 100 * rate, marker="o", ms=3, label=method, **style)
         ax.set_xlim(0, 180)
         ax.set_ylim(-3, 103)

@@ -19,6 +19,11 @@ A new method is one decorated function::
 and a new spectral variant one call to :func:`register_spectral_variant`. ``settings``
 describes the method's fixed parameters (distances in voxels); every run records them
 (:func:`method_settings`).
+
+The methods this package ships are one explicit list, :func:`builtin_methods`: the
+spectral variants, Open3D's methods (:mod:`~o3d_spectral.harness.baselines`) and the peers
+from other packages (:mod:`~o3d_spectral.harness.peers`), registered when this module is
+first imported; neither of those modules registers anything itself.
 """
 
 from __future__ import annotations
@@ -39,24 +44,21 @@ from o3d_spectral import (
     registration_spectral,
     registration_spectral_global,
 )
-from o3d_spectral.harness.tutorial import (
-    FPFH,
-    RANSAC,
-    REFINEMENT,
-    global_then_refine,
-    open3d_fields,
-    ransac_matcher,
-)
+from o3d_spectral.harness import baselines, peers
 from o3d_spectral.registration import DEFAULT_REFINEMENT
 
 __all__ = [
     "INFO_KEYS",
+    "UNAVAILABLE",
     "Method",
+    "builtin_methods",
     "get_method",
     "method_names",
     "method_settings",
     "register_method",
     "register_spectral_variant",
+    "spectral_variant",
+    "unregister_method",
 ]
 
 Method = Callable[
@@ -81,13 +83,9 @@ _REGISTRY: dict[str, _Entry] = {}
 #: Known methods whose package is missing here: how to install it, by name.
 UNAVAILABLE: dict[str, str] = {}
 
-_reg = o3d.pipelines.registration
-
-#: ICP from the identity: correspondences up to this many voxels away, at most this many
-#: iterations (Open3D's default 30 stops before a 10 cm offset is closed).
-ICP_DISTANCE_VOXELS = 5.0
-ICP_MAX_ITERATION = 100
-
+#: Re-exported: the ICP baselines' distance (voxels) and iteration limit.
+ICP_DISTANCE_VOXELS = baselines.ICP_DISTANCE_VOXELS
+ICP_MAX_ITERATION = baselines.ICP_MAX_ITERATION
 
 def _json_value(value: Any) -> Any:
     """NumPy arrays and scalars as JSON values (``json.dumps``' ``default``)."""
@@ -154,14 +152,22 @@ def method_names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
-def register_spectral_variant(name: str, *, global_search: bool = False, **settings) -> Method:
-    """Register a spectral call with fixed settings as ``name``: the local call
-    (:func:`o3d_spectral.registration_spectral` from the identity) or, with
+def unregister_method(name: str) -> None:
+    """Remove the method registered under ``name``; ``ValueError`` listing the names if
+    unknown."""
+    _entry(name)
+    del _REGISTRY[name]
+
+
+def spectral_variant(*, global_search: bool = False, **settings) -> tuple[Method, dict]:
+    """A spectral call with fixed settings as a harness method, and its settings: the
+    local call (:func:`o3d_spectral.registration_spectral` from the identity) or, with
     ``global_search``, :func:`o3d_spectral.registration_spectral_global`.
 
     ``settings`` are the call's keyword arguments (``option``, ``criteria``, ``search``,
     ``cloud``, ``refinement``). The method is deterministic and ignores its seed; its
-    ``info`` holds every key of :data:`INFO_KEYS`.
+    ``info`` holds every key of :data:`INFO_KEYS`. The settings returned are every
+    setting the call runs with (the defaults of those not given), as JSON-able dicts.
     """
     call = registration_spectral_global if global_search else registration_spectral
 
@@ -182,7 +188,14 @@ def register_spectral_variant(name: str, *, global_search: bool = False, **setti
 
     described = ", ".join(f"{key}={value!r}" for key, value in settings.items())
     spectral.__doc__ = f"{call.__name__} with {described or 'its defaults'}."
-    return register_method(name, settings=_spectral_settings(call, settings))(spectral)
+    return spectral, _spectral_settings(call, settings)
+
+
+def register_spectral_variant(name: str, *, global_search: bool = False, **settings) -> Method:
+    """Register :func:`spectral_variant` ``(global_search=..., **settings)`` as ``name``
+    and return the method."""
+    method, described = spectral_variant(global_search=global_search, **settings)
+    return register_method(name, settings=described)(method)
 
 
 def _spectral_settings(call: Callable, settings: dict) -> dict:
@@ -202,110 +215,35 @@ def _spectral_settings(call: Callable, settings: dict) -> dict:
     }
 
 
-register_spectral_variant("spectral")
-register_spectral_variant(
-    "spectral_paper",
-    option=SpectralRegistrationOption.paper(),
-    cloud=CloudOption(target_viewpoint=None),
-    refinement=None,
-)
-register_spectral_variant("spectral_global", global_search=True)
-register_spectral_variant("spectral_global_unrefined", global_search=True, refinement=None)
-register_spectral_variant(  # the search without search_visibility and focus_places
-    "spectral_global_whole_egi",
-    global_search=True,
-    search=GlobalSearchOption(search_visibility=False, focus_places=1),
-)
+def builtin_methods() -> list[tuple[str, Method, dict]]:
+    """The methods this package registers, in order: name, method, settings.
 
-
-#: The ICP baselines' settings (distances in voxels).
-_ICP_SETTINGS = {
-    "init": "identity",
-    "down_sample_voxels": 1.0,
-    "max_correspondence_distance_voxels": ICP_DISTANCE_VOXELS,
-    "criteria": open3d_fields(
-        _reg.ICPConvergenceCriteria(max_iteration=ICP_MAX_ITERATION),
-        ("max_iteration", "relative_fitness", "relative_rmse"),
-    ),
-}
-
-#: FGR's options: the correspondence distance in voxels, Open3D's defaults for the rest.
-_FGR_DISTANCE_VOXELS = 0.5
-_FGR = {"maximum_correspondence_distance_voxels": _FGR_DISTANCE_VOXELS} | open3d_fields(
-    _reg.FastGlobalRegistrationOption(),
-    (
-        "decrease_mu",
-        "division_factor",
-        "iteration_number",
-        "maximum_tuple_count",
-        "tuple_scale",
-        "tuple_test",
-        "use_absolute_scale",
-    ),
-)
-
-
-def _down_sampled(cloud: o3d.geometry.PointCloud, voxel_size: float) -> o3d.geometry.PointCloud:
-    """Voxel down-sampling keeping the given normals (re-normalised after averaging)."""
-    down = cloud.voxel_down_sample(voxel_size)
-    down.normalize_normals()
-    return down
-
-
-def _icp_from_identity(source, target, voxel_size: float, estimation) -> tuple[np.ndarray, dict]:
-    result = _reg.registration_icp(
-        _down_sampled(source, voxel_size),
-        _down_sampled(target, voxel_size),
-        ICP_DISTANCE_VOXELS * voxel_size,
-        np.eye(4),
-        estimation,
-        _reg.ICPConvergenceCriteria(max_iteration=ICP_MAX_ITERATION),
-    )
-    return np.asarray(result.transformation), {}
-
-
-@register_method("icp_point_to_point", settings={"estimation": "point_to_point", **_ICP_SETTINGS})
-def icp_point_to_point(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-    """Open3D point-to-point ICP from the identity on clouds down-sampled at the voxel size."""
-    estimation = _reg.TransformationEstimationPointToPoint()
-    return _icp_from_identity(source, target, voxel_size, estimation)
-
-
-@register_method("icp_point_to_plane", settings={"estimation": "point_to_plane", **_ICP_SETTINGS})
-def icp_point_to_plane(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-    """Open3D point-to-plane ICP from the identity (the clouds' own normals)."""
-    return _icp_from_identity(
-        source, target, voxel_size, _reg.TransformationEstimationPointToPlane()
-    )
-
-
-@register_method(
-    "fpfh_ransac", settings={"features": FPFH, "ransac": RANSAC, "refinement": REFINEMENT}
-)
-def fpfh_ransac(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-    """Open3D's global-registration tutorial: FPFH + RANSAC, then point-to-plane ICP.
-
-    Mutual filter, inlier distance ``1.5 v``, edge-length (0.9) and distance checkers,
-    3-point samples, at most 100000 iterations at confidence 0.999.
+    The spectral variants, Open3D's methods, the peers whose package imports here and
+    FPFH-RANSAC with tuned features; the missing peers are in :data:`UNAVAILABLE`.
     """
-    return global_then_refine(source, target, voxel_size, seed, ransac_matcher(voxel_size)), {}
+    spectral = [
+        ("spectral", {}),
+        ("spectral_paper", {
+            "option": SpectralRegistrationOption.paper(),
+            "cloud": CloudOption(target_viewpoint=None),
+            "refinement": None,
+        }),
+        ("spectral_global", {"global_search": True}),
+        ("spectral_global_unrefined", {"global_search": True, "refinement": None}),
+        # the search without search_visibility and focus_places
+        ("spectral_global_whole_egi", {
+            "global_search": True,
+            "search": GlobalSearchOption(search_visibility=False, focus_places=1),
+        }),
+    ]
+    found = [(name, *spectral_variant(**settings)) for name, settings in spectral]
+    return [*found, *baselines.BASELINES, *peers.available_peers(), peers.TUNED]
 
 
-@register_method("fgr", settings={"features": FPFH, "fgr": _FGR, "refinement": REFINEMENT})
-def fgr(source, target, voxel_size: float, seed: int) -> tuple[np.ndarray, dict]:
-    """Open3D Fast Global Registration on the tutorial's FPFH features (distance
-    ``0.5 v``), then the same point-to-plane ICP refinement."""
-    option = _reg.FastGlobalRegistrationOption(
-        maximum_correspondence_distance=_FGR_DISTANCE_VOXELS * voxel_size
-    )
-
-    def fast_global(source_down, target_down, source_fpfh, target_fpfh):
-        return _reg.registration_fgr_based_on_feature_matching(
-            source_down, target_down, source_fpfh, target_fpfh, option
-        )
-
-    return global_then_refine(source, target, voxel_size, seed, fast_global), {}
+def _register_builtins() -> None:
+    for name, method, settings in builtin_methods():
+        register_method(name, settings=settings)(method)
+    UNAVAILABLE.update(peers.missing_peers())
 
 
-# Peers from other packages and the tuned FPFH-RANSAC, registered after Open3D's methods.
-from o3d_spectral.harness import peers  # noqa: E402, F401
+_register_builtins()

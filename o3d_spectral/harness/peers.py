@@ -12,24 +12,34 @@
   (:data:`~o3d_spectral.harness.selection.TUNING_SPLIT`); it runs on the other instances
   only (its settings carry ``tuning_split``, which the runner reads).
 
-The first two are registered only when their package imports (``pip install
-'o3d-spectral[peers]'``); otherwise asking for them says how to install it
-(:data:`~o3d_spectral.harness.methods.UNAVAILABLE`).
+The first two are listed by :func:`available_peers` only when their package imports
+(``pip install 'o3d-spectral[peers]'``); otherwise :func:`missing_peers` says how to install
+it. :mod:`o3d_spectral.harness.methods` registers them; this module registers nothing.
 """
 
 from __future__ import annotations
 
 import importlib
 import importlib.util
+from collections.abc import Callable
 
 import numpy as np
 
-from o3d_spectral.harness import methods as _methods
 from o3d_spectral.harness import tutorial
+from o3d_spectral.harness.baselines import ICP_DISTANCE_VOXELS, ICP_MAX_ITERATION
 from o3d_spectral.harness.selection import TUNING_SPLIT
 from o3d_spectral.refinement import point_to_plane_refinement
 
-__all__ = ["FPFH_TUNING_GRID", "KISS_MATCHER", "SMALL_GICP", "TUNED_FPFH"]
+__all__ = [
+    "FPFH_TUNING_GRID",
+    "KISS_MATCHER",
+    "SMALL_GICP",
+    "TUNED",
+    "TUNED_FPFH",
+    "available_peers",
+    "fpfh_ransac_with",
+    "missing_peers",
+]
 
 _HINT = "pip install 'o3d-spectral[peers]'"
 
@@ -47,8 +57,8 @@ SMALL_GICP = {
     "registration_type": "GICP",
     "down_sample_voxels": 1.0,
     "num_neighbors": 10,
-    "max_correspondence_distance_voxels": _methods.ICP_DISTANCE_VOXELS,
-    "max_iterations": _methods.ICP_MAX_ITERATION,
+    "max_correspondence_distance_voxels": ICP_DISTANCE_VOXELS,
+    "max_iterations": ICP_MAX_ITERATION,
     "rotation_epsilon_rad": 0.1 * np.pi / 180.0,
     "translation_epsilon_m": 1e-3,
     "num_threads": 1,
@@ -137,24 +147,37 @@ def fpfh_ransac_with(features: dict):
     return method
 
 
-def _register() -> None:
-    peers = [
-        ("kiss_matcher", "kiss_matcher", "kiss-matcher", kiss_matcher, KISS_MATCHER),
-        ("small_gicp", "small_gicp", "small-gicp", small_gicp, SMALL_GICP),
-    ]
-    for name, module, package, method, settings in peers:
-        if _available(module):
-            _methods.register_method(name, settings=settings)(method)
-        else:
-            _methods.UNAVAILABLE[name] = f"the 'peers' extra ({package} is missing): {_HINT}"
-    tuned = {
+#: The peers from other packages: name, module, package on PyPI, method, settings.
+_PEERS = (
+    ("kiss_matcher", "kiss_matcher", "kiss-matcher", kiss_matcher, KISS_MATCHER),
+    ("small_gicp", "small_gicp", "small-gicp", small_gicp, SMALL_GICP),
+)
+
+
+def available_peers() -> list[tuple[str, Callable[..., tuple[np.ndarray, dict]], dict]]:
+    """The peers whose package imports here: name, method, settings."""
+    return [(name, method, settings) for name, module, _, method, settings in _PEERS
+            if _available(module)]
+
+
+def missing_peers() -> dict[str, str]:
+    """The peers whose package is missing here, and how to install it, by name."""
+    return {
+        name: f"the 'peers' extra ({package} is missing): {_HINT}"
+        for name, module, package, _, _ in _PEERS
+        if not _available(module)
+    }
+
+
+#: FPFH-RANSAC with the tuned features: name, method, settings.
+TUNED = (
+    "fpfh_ransac_tuned",
+    fpfh_ransac_with(TUNED_FPFH),
+    {
         "features": TUNED_FPFH,
         "tuning_split": TUNING_SPLIT,
         "tuning_grid": FPFH_TUNING_GRID,
         "ransac": tutorial.RANSAC,
         "refinement": tutorial.REFINEMENT,
-    }
-    _methods.register_method("fpfh_ransac_tuned", settings=tuned)(fpfh_ransac_with(TUNED_FPFH))
-
-
-_register()
+    },
+)

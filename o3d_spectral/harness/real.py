@@ -33,10 +33,10 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral import so3
 from o3d_spectral._bundled import bundled_folder
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
-from o3d_spectral.harness.symmetry import Symmetry, surface_symmetry
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.symmetry import Symmetry, surface_symmetry
 
 __all__ = [
     "DRAGON_ANGLES",
@@ -319,7 +319,7 @@ def ycbv_symmetry(class_name: str) -> Symmetry:
     """Symmetry group of a bundled YCB-Video model cloud, in its own frame.
 
     The kinds recorded for the same YCB object's mesh
-    (:func:`o3d_spectral.harness.symmetry.surface_symmetry`), found on the model's points
+    (:func:`o3d_spectral.synthetic.symmetry.surface_symmetry`), found on the model's points
     (normals estimated, oriented outward; axes from the points' second moments).
 
     Parameters

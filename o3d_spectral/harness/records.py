@@ -45,8 +45,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from o3d_spectral._files import atomic_write_text
 from o3d_spectral.harness._optional import parse_json, require
+from o3d_spectral.io._files import atomic_write_text
 
 if TYPE_CHECKING:
     from o3d_spectral.synthetic.suite import Suite

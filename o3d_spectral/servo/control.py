@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import so3
+from ..spectra import so3
 
 __all__ = [
     "se3_log",

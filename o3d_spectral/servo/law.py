@@ -14,11 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import so3
 from ..ascent import peak_ascent
 from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
-from ..rotation import gradient
 from ..search import hypotheses
+from ..spectra import so3
+from ..spectra.rotation import gradient
 from ..stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = ["Step", "ServoLaw"]

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import so3
 from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
+from ..spectra import so3
 from .control import camera_twist, joint_velocities, limit_velocities
 from .law import ServoLaw
 from .robot import Arm

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _extras, so3
+from .. import _extras
+from ..spectra import so3
 
 __all__ = ["HAND_EYE", "FLANGE_LINK", "Arm"]
 
@@ -39,7 +40,7 @@ HAND_EYE = np.array(
 )
 
 
-def _pybullet():
+def load_pybullet():
     """pybullet and its data, or ``ImportError`` naming the ``servo`` extra."""
     what = "the servo simulation"
     return _extras.require("pybullet", what), _extras.require("pybullet_data", what)
@@ -94,7 +95,7 @@ class Arm:
         for name, matrix in (("world_from_base", base), ("hand_eye", self.hand_eye)):
             if matrix.shape != (4, 4) or not so3.is_rotation(matrix[:3, :3]):
                 raise ValueError(f"{name} must be a 4x4 rigid transform, got {matrix!r}")
-        pybullet, data = _pybullet()
+        pybullet, data = load_pybullet()
         self._pb = pybullet
         self._client = pybullet.connect(pybullet.DIRECT)
         quaternion = _quaternion(base[:3, :3])

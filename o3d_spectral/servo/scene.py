@@ -16,7 +16,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from .. import so3
+from ..spectra import so3
 from ..synthetic.camera import look_at, scan_meshes
 from ..synthetic.models import model_names
 from ..synthetic.sampling import sample_surface

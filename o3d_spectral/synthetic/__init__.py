@@ -1,6 +1,7 @@
 """Synthetic data: the bundled object models, a virtual depth camera, scenes and suites.
 
 * :mod:`~o3d_spectral.synthetic.models`: the bundled YCB meshes (``load_model``);
+* :mod:`~o3d_spectral.synthetic.symmetry`: the models' symmetry groups, found on the meshes;
 * :mod:`~o3d_spectral.synthetic.sensor`: pinhole intrinsics and the depth-noise model;
 * :mod:`~o3d_spectral.synthetic.camera`: the virtual depth camera (raycasting, scans);
 * :mod:`~o3d_spectral.synthetic.sampling`: random model clouds, surface points, rotations;
@@ -23,6 +24,7 @@ __all__ = [
     "Instance",
     "SceneOptions",
     "Suite",
+    "Symmetry",
     "instance_rng",
     "load_model",
     "load_suite",
@@ -30,6 +32,7 @@ __all__ = [
     "make_instance",
     "make_suite",
     "model_names",
+    "model_symmetry",
     "render",
     "scan_meshes",
     "table_mesh",
@@ -45,6 +48,7 @@ __getattr__ = lazy_attributes(
         "Instance": "instance",
         "SceneOptions": "instance",
         "Suite": "suite",
+        "Symmetry": "symmetry",
         "instance_rng": "suite",
         "load_model": "models",
         "load_suite": "suite",
@@ -52,6 +56,7 @@ __getattr__ = lazy_attributes(
         "make_instance": "scenes",
         "make_suite": "suite",
         "model_names": "models",
+        "model_symmetry": "symmetry",
         "render": "camera",
         "scan_meshes": "camera",
         "table_mesh": "tabletop",

@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.harness.symmetry import Symmetry, model_symmetry
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
+from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
 
 __all__ = ["BACKGROUND", "CONDITIONS", "MAX_TRIES", "Instance", "SceneOptions"]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from o3d_spectral._files import atomic_write_text
+from o3d_spectral.io._files import atomic_write_text
 from o3d_spectral.synthetic.instance import CONDITIONS
 
 __all__ = ["atomic_write_text", "check_manifest", "instance_path", "read_manifest"]

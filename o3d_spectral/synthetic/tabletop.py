@@ -10,9 +10,9 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral.harness.symmetry import surface_moments
 from o3d_spectral.synthetic.instance import MAX_TRIES
 from o3d_spectral.synthetic.sampling import model_mesh, moved, rigid
+from o3d_spectral.synthetic.symmetry import surface_moments
 
 __all__ = ["table_mesh", "tabletop"]
 
@@ -38,7 +38,7 @@ def _resting_pose(name: str, rng: np.random.Generator) -> np.ndarray:
     return (yaw * align).as_matrix()
 
 
-def _place_on_table(
+def place_on_table(
     names: list[str], rng: np.random.Generator, size: tuple[float, float] = _TABLE_SIZE,
     *, cluster: bool = True,
 ) -> tuple[list[str], list[np.ndarray]]:
@@ -118,5 +118,5 @@ def tabletop(
     meshes : list of open3d.geometry.TriangleMesh
         The models moved to those poses (world frame, metres).
     """
-    placed, poses = _place_on_table(names, rng, size, cluster=cluster)
+    placed, poses = place_on_table(names, rng, size, cluster=cluster)
     return placed, poses, [moved(model_mesh(n), p) for n, p in zip(placed, poses, strict=True)]

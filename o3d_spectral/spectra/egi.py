@@ -4,9 +4,10 @@ The EGI does not change when a cloud is translated, which is what decouples rota
 from translation. Two ways to get its spherical-harmonic coefficients:
 
 - ``binned=True``: the paper's histogram of normals on the ``2B x 2B`` grid
-  (:func:`histogram`), turned into a density and transformed by :func:`~o3d_spectral.harmonics.sht`;
+  (:func:`histogram`), turned into a density and transformed by
+  :func:`~o3d_spectral.spectra.harmonics.sht`;
 - ``binned=False`` (default): the exact coefficients of the normals themselves
-  (:func:`~o3d_spectral.harmonics.project`), which the histogram approximates by moving
+  (:func:`~o3d_spectral.spectra.harmonics.project`), which the histogram approximates by moving
   each normal to its bin's centre. Rotating the normals then multiplies the coefficients
   by ``U^l(R)`` exactly, so the rotation correlation has no binning error.
 

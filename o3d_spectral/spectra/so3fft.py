@@ -33,7 +33,7 @@ from scipy.ndimage import maximum_filter
 from . import so3
 from .egi import grid_points
 from .harmonics import isht, resize, sht
-from .wigner import _quarter_turn, wigner_z
+from .wigner import quarter_turn, wigner_z
 
 __all__ = ["CorrelationGrid", "correlation_grid", "visible_correlation_grid", "peaks"]
 
@@ -64,7 +64,7 @@ class CorrelationGrid:
 
 
 @lru_cache(maxsize=8)
-def _diagonalising_basis(bandwidth: int) -> NDArray[np.complex128]:
+def diagonalising_basis(bandwidth: int) -> NDArray[np.complex128]:
     """``W`` (2B-1, 2B-1): rows ``m > 0``: ``(e_m + i e_-m) / sqrt2``; ``m < 0``:
     ``(e_|m| - i e_-|m|) / sqrt2``; ``m = 0``: ``e_0``; ``W Uz(a) W^H = diag(exp(i m a))``."""
     B = bandwidth
@@ -80,17 +80,17 @@ def _diagonalising_basis(bandwidth: int) -> NDArray[np.complex128]:
 @lru_cache(maxsize=8)
 def _delta(bandwidth: int, n_beta: int) -> NDArray[np.complex128]:
     """``Delta^l(beta_j) = W Q Uz(beta_j) Q^T W^H``, shape (n_beta, B, 2B-1, 2B-1)."""
-    Q = _quarter_turn(bandwidth)
+    Q = quarter_turn(bandwidth)
     betas = np.pi * (np.arange(n_beta) + 0.5) / n_beta
     d = np.stack([Q @ wigner_z(beta, bandwidth) @ Q.transpose(0, 2, 1) for beta in betas])
-    out = _change_basis(d)
+    out = change_basis(d)
     out.flags.writeable = False
     return out
 
 
-def _change_basis(d: NDArray[np.float64]) -> NDArray[np.complex128]:
+def change_basis(d: NDArray[np.float64]) -> NDArray[np.complex128]:
     """``W d W^H`` for real stacked ``d`` (..., 2B-1, 2B-1), ``W`` of
-    :func:`_diagonalising_basis`.
+    :func:`diagonalising_basis`.
 
     Row ``m`` of ``W`` mixes only orders ``m`` and ``-m``, so each side is a few real
     slices (no dense complex product: at a large bandwidth those products were most of
@@ -124,7 +124,7 @@ def correlation_grid(
     ----------
     F, G : array_like, shape (B, 2B - 1) or (S, B, 2B - 1)
         Coefficients of the moving and the fixed EGI; or stacks of ``S`` functions each
-        (the spectra's shells, :mod:`o3d_spectral.shells`), whose ``S`` correlations of
+        (the spectra's shells, :mod:`o3d_spectral.spectra.shells`), whose ``S`` correlations of
         ``F[s]`` with ``G[s]`` are summed.
     n_alpha : int, optional
         Samples of ``alpha`` and ``gamma`` (>= 2B - 1); ``2B`` when omitted.
@@ -147,7 +147,7 @@ def correlation_grid(
         raise ValueError(f"n_alpha must be >= 2B - 1 = {2 * B - 1}, got {n_alpha}")
     if n_beta < 1:
         raise ValueError(f"n_beta must be positive, got {n_beta}")
-    W = _diagonalising_basis(B)
+    W = diagonalising_basis(B)
     g, f = G @ W.T, F @ W.T  # (S, B, 2B-1): g^l = W G^l
     products = np.einsum("slm,sln->lmn", g.conj(), f)  # summed over the stack
     K = np.einsum("jlmn,lmn->jmn", _delta(B, n_beta), products)  # (n_beta, m, n)
@@ -172,7 +172,7 @@ def visible_correlation_grid(
 
     A sensor samples a surface in proportion to a weight ``w(n) >= 0`` of its normal (a
     depth camera in direction ``d``: the cosine of incidence ``max(0, n . d)``,
-    :func:`o3d_spectral.egi.facing`), so the fixed EGI ``g`` of one view is expected to
+    :func:`o3d_spectral.spectra.egi.facing`), so the fixed EGI ``g`` of one view is expected to
     be ``w f_R`` (``f_R(n) = f(R^T n)``: the moving EGI turned by ``R``), not ``f_R``.
     The grid holds the cosine similarity of the two, both without degree 0, over
     ``4 pi`` (the unit of :func:`correlation_grid` for unit-norm coefficients)::

@@ -4,7 +4,7 @@ The magnitude ``|V(k)|`` of a voxel grid's 3D Fourier transform does not change 
 cloud is translated (a shift only turns the phase, eq. fourier_shift), and turns with the
 cloud: if ``target = R source + t`` then ``|V_t(k)| = |V_s(R^T k)|``. Sampled on spheres
 ``|k| = rho`` of the frequency space, each shell is a function on the sphere, and the
-rotation correlation of every shell at once (:func:`o3d_spectral.so3fft.correlation_grid`
+rotation correlation of every shell at once (:func:`o3d_spectral.spectra.so3fft.correlation_grid`
 with stacked coefficients) gives rotation candidates over all of SO(3) with no
 translation known, as the EGI does (Buelow and Birk, "Spectral 6DOF registration of
 noisy 3D range data with partial overlap", IEEE PAMI 2013).

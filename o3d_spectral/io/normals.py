@@ -3,7 +3,7 @@
 A cloud's normals are usable by the method only when their signs are consistent: outward
 on a model, towards the sensor on a scan. This module
 
-- orients normals whose signs are not (:mod:`o3d_spectral.signs` tells when), or that
+- orients normals whose signs are not (:mod:`o3d_spectral.io.signs` tells when), or that
   were estimated (:func:`orient`): towards a known sensor; towards the origin for a depth
   map given in its sensor's frame (:func:`is_depth_map`); otherwise consistently along
   the surface and outward from the centroid;

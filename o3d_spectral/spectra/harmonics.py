@@ -215,7 +215,7 @@ def project(
     distribution of unit vectors ``n_i``, truncated to ``l < B``. Rotating every ``n_i``
     by ``R`` multiplies the coefficients by ``U^l(R)`` exactly (no binning error).
     Computed in one compiled pass over the directions
-    (:func:`o3d_spectral.kernels.harmonic_sums`: no (B, B, N) Legendre table; 50k
+    (:func:`o3d_spectral.spectra.kernels.harmonic_sums`: no (B, B, N) Legendre table; 50k
     normals at B = 16 in about 4 ms).
 
     Parameters

@@ -12,7 +12,7 @@ coefficients (paper, eq. real_fourier_transform_gr_simplified)::
 matrices, obtained from the angular-momentum operators ``L_k`` in the complex basis by
 the complex-to-real change of basis ``T^l``: ``u^l_k = i T^l L_k^T (T^l)^H``.
 
-All arrays use the padded layout of :mod:`o3d_spectral.harmonics`: the matrices for all
+All arrays use the padded layout of :mod:`o3d_spectral.spectra.harmonics`: the matrices for all
 degrees ``l < B`` are stacked as shape ``(B, 2B - 1, 2B - 1)``, the block of degree ``l``
 centred, zeros elsewhere. A rotation is evaluated as
 ``U(R) = Uz(alpha) Q Uz(beta) Q^T Uz(gamma)`` from its ZYZ Euler angles, where ``Uz`` (a
@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import so3
 
-__all__ = ["generators", "wigner_matrices", "rotate_coefficients", "wigner_z"]
+__all__ = ["generators", "wigner_matrices", "rotate_coefficients", "wigner_z", "quarter_turn"]
 
 
 def _complex_to_real(l: int) -> NDArray[np.complex128]:  # noqa: E741
@@ -86,7 +86,7 @@ def generators(bandwidth: int) -> NDArray[np.float64]:
 
 
 @lru_cache(maxsize=16)
-def _quarter_turn(bandwidth: int) -> NDArray[np.float64]:
+def quarter_turn(bandwidth: int) -> NDArray[np.float64]:
     """``Q = U(Rx(-pi/2))``, which maps the z-axis to the y-axis; shape (B, 2B-1, 2B-1)."""
     ux = generators(bandwidth)[0]
     blocks = []
@@ -137,7 +137,7 @@ def wigner_matrices(R: ArrayLike, bandwidth: int) -> NDArray[np.float64]:
         Orthogonal blocks in the padded layout (module docstring).
     """
     alpha, beta, gamma = so3.euler_zyz(R)
-    Q = _quarter_turn(bandwidth)
+    Q = quarter_turn(bandwidth)
     inner = _z_left(beta, _z_right(Q.transpose(0, 2, 1), gamma))
     return _z_left(alpha, Q @ inner)
 

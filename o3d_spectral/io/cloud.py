@@ -13,7 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import real_array
+from .._checks import real_array
 from .normals import faces, orient, view_direction
 from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
@@ -185,28 +185,28 @@ class CloudReading:
     ----------
     normals_from : {"given", "re-oriented", "estimated"}
         The caller's normals, as given or with their signs chosen again (neighbours
-        disagreed, :func:`o3d_spectral.signs.sign_disagreement`), or estimated.
+        disagreed, :func:`o3d_spectral.io.signs.sign_disagreement`), or estimated.
     orientation : {"camera", "sensor frame", "hemisphere", "surface"} or None
-        The rule that chose their signs (:func:`o3d_spectral.normals.orient`); None for
+        The rule that chose their signs (:func:`o3d_spectral.io.normals.orient`); None for
         normals used as given.
     view : ndarray, shape (3,), or None
         Unit direction towards the sensor when the normals say the cloud is a single
         view, in the cloud's frame: towards the frame's origin when its normals face it
-        (a view in its sensor's frame), else :func:`o3d_spectral.normals.view_direction`;
+        (a view in its sensor's frame), else :func:`o3d_spectral.io.normals.view_direction`;
         None otherwise (always for a two-sided cloud).
     sign_disagreement : float or None
         For given normals: the share of neighbours whose normals point to opposite sides
-        (:func:`o3d_spectral.signs.sign_disagreement`); None when not measured (estimated
+        (:func:`o3d_spectral.io.signs.sign_disagreement`); None when not measured (estimated
         normals, or given normals that face the sensor).
     flatness : float
         Length of the mean unit normal: 1 when all normals are alike (a plane, whose
         EGI leaves the rotation about it free), near 0 for a closed surface.
     two_sided : bool
         The given normals disagree between neighbours because they point away from each
-        other (:func:`o3d_spectral.signs.back_to_back`): the two faces of walls thinner
+        other (:func:`o3d_spectral.io.signs.back_to_back`): the two faces of walls thinner
         than the points' spacing (a bowl, a mug), which at the voxel scale are one sheet
         a sensor may see from either side. Their signs are then not used: the EGI holds
-        each normal both ways (:func:`o3d_spectral.egi.coefficients`, ``two_sided``) and
+        each normal both ways (:func:`o3d_spectral.spectra.egi.coefficients`, ``two_sided``) and
         a sensor sees every surface, turned to face it
         (:meth:`o3d_spectral.SpectralStepper.visible`).
     """
@@ -266,13 +266,13 @@ def _signs_checked(
     origin: ArrayLike | None,
 ) -> tuple[CloudArrays, str | None, float | None, bool]:
     """Given normals as they are when their signs agree along the surface; otherwise
-    with their signs chosen again by :func:`o3d_spectral.normals.orient`. Returned with
+    with their signs chosen again by :func:`o3d_spectral.io.normals.orient`. Returned with
     the rule that chose them (None: as given, or two-sided), the share of neighbours
     that disagreed and whether the cloud is two-sided (its disagreeing neighbours back to
-    back, :data:`o3d_spectral.signs.THIN_WALLS`: the signs are then chosen only so that
+    back, :data:`o3d_spectral.io.signs.THIN_WALLS`: the signs are then chosen only so that
     the normals averaged per voxel do not cancel, and are not used otherwise).
 
-    Normals that all but :data:`o3d_spectral.signs.SIGN_DISAGREEMENT` of face the sensor
+    Normals that all but :data:`o3d_spectral.io.signs.SIGN_DISAGREEMENT` of face the sensor
     (``camera_location``, else ``origin``) are signed by it, as :func:`orient` would sign
     them: they are used as given without the neighbour search (a depth camera's capture
     in its own frame; the disagreement is then reported as None)."""
@@ -326,7 +326,7 @@ def prepare(
     only for the per-voxel means, and no view). When the cloud has no normals they are
     estimated on the cloud averaged per cell of ``egi_voxel_size`` (PCA over
     ``normal_radius``, 30 neighbours at most). Either way the signs are chosen by
-    :func:`o3d_spectral.normals.orient`: towards ``camera_location`` when given; towards
+    :func:`o3d_spectral.io.normals.orient`: towards ``camera_location`` when given; towards
     the origin when the cloud is a depth map seen from an origin outside it (a scan in
     its sensor's frame); else consistently along the surface and outward from the
     centroid. The voxel grid's points are the cloud averaged per voxel of ``voxel_size``.

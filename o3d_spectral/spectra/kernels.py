@@ -5,7 +5,7 @@ Each kernel is a plain loop over its input, compiled on first use and cached on 
 their callers check and shape the arguments.
 
 Compiling them takes about 2 s of CPU once after installation; loading them from the
-cache, about 0.4 s in each process that uses them. ``python -m o3d_spectral.kernels``
+cache, about 0.4 s in each process that uses them. ``python -m o3d_spectral.spectra.kernels``
 (:func:`compile_all`) compiles them ahead, so that no registration pays for it.
 """
 
@@ -20,8 +20,9 @@ __all__ = ["compile_all", "harmonic_sums", "splat_into", "HARMONIC_BLOCK"]
 
 @numba.njit(cache=True, nogil=True)
 def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
-    """Factors of the orthonormal Legendre recurrence (:func:`o3d_spectral.harmonics.legendre`):
-    sectoral ``c[m]``, and ``a[l, m]``, ``b[l, m]`` of ``P_l^m = a (x P_{l-1}^m - b P_{l-2}^m)``."""
+    """Factors of the orthonormal Legendre recurrence
+    (:func:`o3d_spectral.spectra.harmonics.legendre`): sectoral ``c[m]``, and ``a[l, m]``,
+    ``b[l, m]`` of ``P_l^m = a (x P_{l-1}^m - b P_{l-2}^m)``."""
     c = np.empty(B)
     c[0] = np.sqrt(1.0 / (4.0 * np.pi))
     for m in range(1, B):
@@ -41,7 +42,8 @@ HARMONIC_BLOCK = 64
 
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
 def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
-    """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B`` (:func:`o3d_spectral.harmonics.project`).
+    """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B``
+    (:func:`o3d_spectral.spectra.harmonics.project`).
 
     The orthonormal Legendre recurrence runs over blocks of :data:`HARMONIC_BLOCK`
     directions at once, each block's terms summed before they are added to ``F``
@@ -117,7 +119,7 @@ def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
                binary: bool) -> None:
     """Add each point's weight to ``grid`` (3D, zeroed by the caller) at the voxel
     holding it, or shared among the 8 voxel centres about it when ``trilinear``; with
-    ``binary``, 1 in every voxel that receives weight (:func:`o3d_spectral.grid.splat`).
+    ``binary``, 1 in every voxel that receives weight (:func:`o3d_spectral.spectra.grid.splat`).
 
     Parameters
     ----------

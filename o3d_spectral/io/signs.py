@@ -3,10 +3,10 @@
 Neighbouring points on one surface have normals on the same side of it. Given normals
 whose neighbours often point to opposite sides (:func:`sign_disagreement`) are either an
 estimate with no orientation step (Open3D's ``estimate_normals()`` flips whole patches),
-to be oriented again (:func:`o3d_spectral.normals.orient`), or the outward normals of
+to be oriented again (:func:`o3d_spectral.io.normals.orient`), or the outward normals of
 walls thinner than the points' spacing, whose nearest neighbours lie on either face and
 point away from each other (:func:`back_to_back`): a bowl's or a mug's wall, which a
-sensor may see from either side (a two-sided cloud, :class:`o3d_spectral.cloud.CloudReading`).
+sensor may see from either side (a two-sided cloud, :class:`o3d_spectral.io.cloud.CloudReading`).
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from itertools import islice
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .cloud import extent
+from ..io.cloud import extent
 from .fft import RealFFT3, fft_plan, next_fast_len, padded_forward
 from .grid import Box, Lattice, check_memory, splat
 from .translation import cross_power_peak, peak_heights
@@ -76,7 +76,7 @@ class TargetGrid:
     voxel_size : float
         Voxel edge, metres.
     weighting : {"trilinear", "count", "binary"}
-        How points fill the grid (:func:`o3d_spectral.grid.splat`).
+        How points fill the grid (:func:`o3d_spectral.spectra.grid.splat`).
     peak_width : float
         Width of the Gaussian window of the correlation, voxels.
     window : int or None
@@ -142,7 +142,7 @@ class TargetGrid:
         unambiguously), except for a window about a prediction in a fixed cloud that holds
         no more than the moving one (:meth:`holds_more`): the block's own size (only the
         shifts keeping the moving grid in the block are read:
-        :func:`o3d_spectral.translation.cross_power_peak`'s ``searched``). In a scene the
+        :func:`o3d_spectral.spectra.translation.cross_power_peak`'s ``searched``). In a scene the
         block's content would wrap around its edges and change the peak heights that rank
         the climbs (cluttered suite: 136 successes of 240 against 145)."""
         if self._unpadded(fixed, radius):

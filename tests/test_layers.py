@@ -1,0 +1,238 @@
+"""Imports point one way, and no module reaches into another's private names.
+
+The layers, lowest first: the core (the method and its maths, at the package's top level
+and in ``io`` and ``spectra``), ``synthetic`` (the scene generator and the models'
+symmetries), then ``harness`` (evaluation) and ``servo`` (visual servoing), which do not
+use each other, and ``cli`` over all of them. A module may import from its own layer and
+the layers below it. Within the core, ``io`` (clouds as given) imports only itself and the
+package's private helpers, and ``spectra`` (the pure maths) only itself, ``io`` and those
+helpers; the method, at the top level, uses both. Read from the source with ``ast``:
+nothing is imported.
+
+A private name (one starting with an underscore, not a dunder) is its module's own: no
+other module, script or test imports it or reads it as an attribute. Private *modules*
+(``_checks``, ``_extras``, ...) are the package's shared internals: importing one is allowed,
+its private names are not.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "o3d_spectral"
+#: Each outer layer and the layers it may import (besides its own).
+ALLOWED = {
+    "core": set(),
+    "synthetic": {"core"},
+    "harness": {"core", "synthetic"},
+    "servo": {"core", "synthetic"},
+    "cli": {"core", "synthetic", "harness", "servo"},
+}
+
+
+#: Within the core: what ``io`` and ``spectra`` may import besides themselves.
+CORE_ALLOWED = {
+    "io": {"helpers"},
+    "spectra": {"io", "helpers"},
+}
+#: The package's private helper modules, which any module may use.
+HELPERS = {"_checks", "_extras", "_lazy", "_bundled"}
+
+
+def module_name(path: Path) -> str:
+    """The dotted name of a source file under the project root."""
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def layer(module: str) -> str:
+    """The layer of a module of the package (see the module docstring)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in ALLOWED else "core"
+
+
+def core_part(module: str) -> str:
+    """``io``, ``spectra``, ``helpers`` or ``method`` for a module of the core."""
+    parts = module.split(".")
+    if len(parts) > 1 and parts[1] in CORE_ALLOWED:
+        return parts[1]
+    return "helpers" if len(parts) > 1 and parts[1] in HELPERS else "method"
+
+
+def is_module(dotted: str) -> bool:
+    """Whether ``dotted`` names a module or package of the project."""
+    return _is_module(ROOT.joinpath(*dotted.split(".")))
+
+
+@cache
+def _is_module(path: Path) -> bool:
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
+@cache
+def parsed(path: Path) -> ast.Module:
+    """A file's syntax tree, parsed once."""
+    return ast.parse(path.read_text(), str(path))
+
+
+def imported(path: Path) -> Iterator[tuple[ast.AST, str, str | None]]:
+    """``(node, module, name)`` for every import in a file: ``name`` is what a ``from``
+    import takes from ``module`` (None for ``import module``); relative imports resolved."""
+    here = module_name(path)
+    package = here if path.name == "__init__.py" else here.rpartition(".")[0]
+    for node in ast.walk(parsed(path)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node, alias.name, None
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            for alias in node.names:
+                yield node, base, alias.name
+
+
+def package_imports(path: Path) -> Iterator[str]:
+    """The package's modules a file imports (``from a import b``: ``a.b`` when ``b`` is a
+    module, else ``a``)."""
+    for _, module, name in imported(path):
+        if name is not None and is_module(f"{module}.{name}"):
+            module = f"{module}.{name}"
+        if module.split(".")[0] == "o3d_spectral":
+            yield module
+
+
+def private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def module_aliases(path: Path) -> dict[str, str]:
+    """Local names a file binds to the project's modules, and the module each names."""
+    aliases = {}
+    for node, module, name in imported(path):
+        if name is None:
+            top = module.split(".")[0]
+            bound = next(a for a in node.names if a.name == module)
+            aliases[bound.asname or top] = module if bound.asname else top
+        elif is_module(f"{module}.{name}"):
+            bound = next(a for a in node.names if a.name == name)
+            aliases[bound.asname or name] = f"{module}.{name}"
+    return {local: module for local, module in aliases.items() if is_module(module)}
+
+
+def dotted(node: ast.AST) -> str | None:
+    """``a.b.c`` for a chain of attributes on a name, else None."""
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        head = dotted(node.value)
+        return None if head is None else f"{head}.{node.attr}"
+    return None
+
+
+def private_reaches(path: Path) -> Iterator[str]:
+    """Where a file takes another module's private name: ``from m import _x``,
+    ``m._x`` on a module ``m`` of the project, and ``setattr`` / ``getattr`` /
+    ``monkeypatch.setattr`` of ``(m, "_x")``."""
+    where = path.relative_to(ROOT)
+    for node, module, name in imported(path):
+        if name is not None and private(name) and not is_module(f"{module}.{name}"):
+            yield f"{where}:{node.lineno}: from {module} import {name}"
+    aliases = module_aliases(path)
+
+    def resolved(expression: ast.AST) -> str | None:
+        chain = dotted(expression)
+        if chain is None or chain.split(".")[0] not in aliases:
+            return None
+        head, _, rest = chain.partition(".")
+        full = aliases[head] + (f".{rest}" if rest else "")
+        return full if is_module(full) else None
+
+    for node in ast.walk(parsed(path)):
+        if isinstance(node, ast.Attribute) and private(node.attr):
+            owner = resolved(node.value)
+            if owner is not None and not is_module(f"{owner}.{node.attr}"):
+                yield f"{where}:{node.lineno}: {owner}.{node.attr}"
+        elif isinstance(node, ast.Call) and len(node.args) >= 2:
+            func = dotted(node.func) or ""
+            name = node.args[1]
+            if (
+                func.split(".")[-1] in ("setattr", "getattr", "delattr")
+                and isinstance(name, ast.Constant)
+                and isinstance(name.value, str)
+                and private(name.value)
+                and resolved(node.args[0]) is not None
+            ):
+                yield f"{where}:{node.lineno}: {func}({resolved(node.args[0])}, {name.value!r})"
+
+
+PACKAGE_FILES = sorted(PACKAGE.rglob("*.py"))
+CHECKED_FILES = sorted(
+    [*PACKAGE_FILES, *(ROOT / "eval").rglob("*.py"), *(ROOT / "tests").rglob("*.py"),
+     *(ROOT / "examples").rglob("*.py")]
+)
+
+
+@pytest.mark.parametrize("path", PACKAGE_FILES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_point_down_the_layers(path):
+    own = layer(module_name(path))
+    wrong = sorted(
+        {
+            target
+            for target in package_imports(path)
+            if layer(target) != own and layer(target) not in ALLOWED[own]
+        }
+    )
+    assert not wrong, f"the {own} layer imports {wrong}"
+    part = core_part(module_name(path)) if own == "core" else None
+    if part in CORE_ALLOWED:
+        wrong = sorted(
+            {
+                target
+                for target in package_imports(path)
+                if target != "o3d_spectral"
+                and core_part(target) != part
+                and core_part(target) not in CORE_ALLOWED[part]
+            }
+        )
+        assert not wrong, f"o3d_spectral.{part} imports {wrong}"
+
+
+def test_no_private_name_is_reached_from_another_module():
+    reaches = [line for path in CHECKED_FILES for line in private_reaches(path)]
+    assert not reaches, "private names used outside their module:\n" + "\n".join(reaches)
+
+
+def test_the_checks_see_what_they_forbid(tmp_path, monkeypatch):
+    """The two checks find a forbidden direction and each form of private reach."""
+    monkeypatch.setattr("tests.test_layers.ROOT", tmp_path)
+    package = tmp_path / "o3d_spectral"
+    (package / "harness").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "harness" / "__init__.py").write_text("")
+    (package / "harness" / "errors.py").write_text("def _helper(): ...\n")
+    core = package / "plots.py"
+    core.write_text(
+        "from .harness.errors import _helper\n"
+        "from .harness import errors\n"
+        "import o3d_spectral.harness.errors as e\n"
+        "errors._helper()\n"
+        "e._helper()\n"
+        "setattr(errors, '_helper', None)\n"
+        "from . import harness\n"  # a module: no private name reached
+    )
+    assert layer(module_name(core)) == "core"
+    assert {layer(target) for target in package_imports(core)} == {"harness"}
+    assert core_part("o3d_spectral.spectra.so3") == "spectra"
+    assert core_part("o3d_spectral._checks") == "helpers"
+    assert core_part("o3d_spectral.law") == "method"
+    assert "method" not in CORE_ALLOWED["spectra"]  # the maths never use the method
+    reaches = list(private_reaches(core))
+    assert len(reaches) == 4, reaches
