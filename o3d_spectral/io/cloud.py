@@ -272,10 +272,9 @@ def _signs_checked(
     back, :data:`o3d_spectral.io.signs.THIN_WALLS`: the signs are then chosen only so that
     the normals averaged per voxel do not cancel, and are not used otherwise).
 
-    Normals that all but :data:`o3d_spectral.io.signs.SIGN_DISAGREEMENT` of face the sensor
-    (``camera_location``, else ``origin``) are signed by it, as :func:`orient` would sign
-    them: they are used as given without the neighbour search (a depth camera's capture
-    in its own frame; the disagreement is then reported as None)."""
+    Normals that nearly all face the sensor (``camera_location``, else ``origin``) are
+    signed by it, as :func:`orient` would: used as given, no neighbour search (a depth
+    capture in its camera's frame; the disagreement is then None)."""
     sensor = camera_location if camera_location is not None else origin
     sensor = np.zeros(3) if sensor is None else sensor
     if faces(arrays.points, arrays.normals, sensor, share=1.0 - SIGN_DISAGREEMENT):
