@@ -124,10 +124,18 @@ def mspd(
         Camera intrinsics (pixels).
     symmetry : Symmetry, optional
         The model's symmetry group in its own frame.
+
+    Returns
+    -------
+    float
+        Pixels; infinite when the estimate puts a point at or behind the camera's plane.
     """
     points = np.asarray(points, dtype=np.float64)
     t_est = np.asarray(T_est, dtype=np.float64)
-    seen = _project(K, points @ t_est[:3, :3].T + t_est[:3, 3])
+    posed = points @ t_est[:3, :3].T + t_est[:3, 3]
+    if np.any(posed[:, 2] <= 0.0):  # not all in front of the camera: no image to compare
+        return float("inf")
+    seen = _project(K, posed)
     best = np.inf
     for pose in np.asarray(T_gt, dtype=np.float64) @ symmetry_elements(symmetry):
         truth = _project(K, points @ pose[:3, :3].T + pose[:3, 3])
