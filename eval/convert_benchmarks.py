@@ -12,13 +12,14 @@ dragon scans in the 3DMatch layout.
 * ``mask_visib/000001_<k>.png``: the pixels of the object's crop (the label mask's);
 * ``scene_gt.json``: the poses ``<class>_T_cam_from_model.txt`` (rotation made exactly
   orthonormal, as :mod:`o3d_spectral.harness.real` does);
-* ``models/obj_<id>.ply``: the model cloud's surface, object ids the classes' lines in
-  ``classes.txt`` (BOP's YCB-V ids). The model is a cloud of 2,621 points; the surface is
-  Open3D's ball pivoting on them (normals estimated and oriented outward as
-  :func:`o3d_spectral.harness.real.with_normals` does for a model; ball radii 1.5, 3, 6
-  and 12 times the median nearest-neighbour spacing), so its vertices are the model's
-  own points. Its distance to the points is printed (and recorded in the folder's
-  README);
+* ``models_eval/obj_<id>.ply``: the model cloud (2,621 points) with its normals
+  (estimated, oriented outward by :func:`o3d_spectral.harness.real.orient_outward`), what
+  the registrations, MSSD and MSPD use; object ids are the classes' lines in
+  ``classes.txt`` (BOP's YCB-V ids);
+* ``models/obj_<id>.ply``: a surface of it for VSD: Open3D's screened Poisson
+  reconstruction (octree depth 7) without the 5% of its vertices of lowest density
+  (where no points are: it closes the mug's opening otherwise). Its distances to the
+  points are printed (and recorded in the folder's README);
 * ``models_info.json``: diameters and the symmetries the harness finds for the bundled
   models (:func:`o3d_spectral.harness.real.ycbv_symmetry`).
 
@@ -27,7 +28,7 @@ dragon scans in the 3DMatch layout.
 
 Usage::
 
-    python eval/convert_benchmarks.py ycbv /work/shared/data/real
+    python eval/convert_benchmarks.py ycbv SOURCE
     python eval/convert_benchmarks.py dragon out/dragon_3dmatch
 """
 
@@ -43,11 +44,16 @@ from scipy.spatial import cKDTree
 
 from o3d_spectral import so3
 from o3d_spectral.harness import bop_write, pose_metrics
-from o3d_spectral.harness.real import YCBV_CLASSES, _outward, write_dragon_pairs, ycbv_symmetry
+from o3d_spectral.harness.real import (
+    YCBV_CLASSES,
+    orient_outward,
+    write_dragon_pairs,
+    ycbv_symmetry,
+)
 
 FRAME = "0000_000001"
 SHAPE = (480, 640)
-BALL_RADII = (1.5, 3.0, 6.0, 12.0)
+POISSON_DEPTH, POISSON_TRIM = 7, 0.05
 
 
 def _pixels(points: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -60,33 +66,28 @@ def _pixels(points: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rounded[:, 1].astype(int), rounded[:, 0].astype(int)
 
 
-def surface(points: np.ndarray) -> tuple[o3d.geometry.TriangleMesh, dict]:
-    """Ball-pivoting surface of a model cloud, and its distances to the points (mm)."""
+def surface(points: np.ndarray) -> tuple[o3d.geometry.TriangleMesh, o3d.geometry.PointCloud, dict]:
+    """Screened Poisson surface of a model cloud, the cloud with its normals, and the
+    distances between the surface and the points (mm)."""
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     cloud.estimate_normals()
-    _outward(cloud)
-    tree = cKDTree(points)
-    spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
-    radii = o3d.utility.DoubleVector([spacing * r for r in BALL_RADII])
-    mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(cloud, radii)
-    mesh.vertex_normals = cloud.normals  # the points' own normals, used or not
+    orient_outward(cloud)
+    mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+        cloud, depth=POISSON_DEPTH)
+    density = np.asarray(density)
+    mesh.remove_vertices_by_mask(density < np.quantile(density, POISSON_TRIM))
+    mesh.compute_vertex_normals()
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
     to_surface = scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
     o3d.utility.random.seed(0)
     samples = np.asarray(mesh.sample_points_uniformly(20000).points)
-    to_points = tree.query(samples)[0]
-    stats = {
-        "spacing_mm": 1e3 * spacing,
-        "triangles": len(mesh.triangles),
-        "points_off_surface": int(np.sum(to_surface > 1e-4)),
-        "points_to_surface_p95_mm": 1e3 * float(np.quantile(to_surface, 0.95)),
-        "points_to_surface_max_mm": 1e3 * float(to_surface.max()),
-        "surface_to_points_median_mm": 1e3 * float(np.median(to_points)),
-        "surface_to_points_p95_mm": 1e3 * float(np.quantile(to_points, 0.95)),
-        "surface_to_points_max_mm": 1e3 * float(to_points.max()),
-    }
-    return mesh, stats
+    to_points = cKDTree(points).query(samples)[0]
+    stats = {"triangles": len(mesh.triangles)}
+    for label, gaps in (("points_to_surface", to_surface), ("surface_to_points", to_points)):
+        for q, name in ((0.5, "median"), (0.95, "p95"), (1.0, "max")):
+            stats[f"{label}_{name}_mm"] = 1e3 * float(np.quantile(gaps, q))
+    return mesh, cloud, stats
 
 
 def convert_ycbv(source: Path, out: Path) -> None:
@@ -97,15 +98,15 @@ def convert_ycbv(source: Path, out: Path) -> None:
     rows, cols = _pixels(scene, K)
     depth[rows, cols] = scene[:, 2]
     classes = (source / "ycbv" / "classes.txt").read_text().split()
-    if out.exists():
-        shutil.rmtree(out)
+    for folder in ("models", "models_eval", "test"):  # the README stays
+        shutil.rmtree(out / folder, ignore_errors=True)
     annotations = []
     for name in YCBV_CLASSES:
         object_id = classes.index(name) + 1
         points = np.loadtxt(source / "ycbv" / "models" / name / "points.xyz")
-        mesh, stats = surface(points)
+        mesh, cloud, stats = surface(points)
         print(name, f"obj_{object_id:06d}", ", ".join(f"{k} {v:.3g}" for k, v in stats.items()))
-        bop_write.write_model(out, object_id, mesh, ycbv_symmetry(name))
+        bop_write.write_model(out, object_id, mesh, ycbv_symmetry(name), cloud)
         T = np.loadtxt(frame / f"{name}_T_cam_from_model.txt").reshape(4, 4)
         T[:3, :3] = so3.project_to_rotation(T[:3, :3])
         crop = np.asarray(o3d.io.read_point_cloud(str(frame / f"{name}_crop.ply")).points)

@@ -7,8 +7,10 @@ A BOP dataset folder holds (the BOP toolkit's ``docs/bop_datasets_format.md``)::
                                        scene_gt_info.json (optional), depth/, mask_visib/
     DIR/test_targets_bop19.json        (optional) the targets of the BOP 19+ test split
 
-Lengths in BOP's files are millimetres; here they become metres. Models are meshes
-(``models_eval/`` when present, else ``models/``); a depth PNG times the image's
+Lengths in BOP's files are millimetres; here they become metres. VSD renders the surfaces
+of ``models/`` (else ``models_eval/``); the registrations' sources, MSSD and MSPD use the
+points of ``models_eval/`` (else ``models/``), with their normals (a mesh's vertex
+normals; a cloud's own, or estimated and oriented outward); a depth PNG times the image's
 ``depth_scale`` is depth in millimetres; ``mask_visib/<image>_<k>.png`` marks the pixels
 where annotation ``k`` of ``scene_gt.json`` is visible.
 
@@ -16,7 +18,7 @@ Every annotated object of an image (listed in ``test_targets_bop19.json`` on the
 split when the file exists; at least 10% visible when ``scene_gt_info.json`` says) gives
 two instances, in two sets: the model against its visible-mask crop (``kind="crop"``) and
 the model against the whole depth frame, down-sampled to :data:`FRAME_VOXEL`
-(``kind="frame"``). The source is the model's vertices with the mesh's normals; the target
+(``kind="frame"``). The source is the model's points with their normals; the target
 is back-projected depth in the camera frame, normals estimated and turned to the camera;
 ``T_gt`` is BOP's model-to-camera pose. :meth:`BopSet.score` gives the row's BOP errors.
 """
@@ -33,6 +35,7 @@ import open3d as o3d
 
 from o3d_spectral._files import check_cloud_file
 from o3d_spectral.harness import pose_metrics
+from o3d_spectral.harness.real import orient_outward
 from o3d_spectral.harness.symmetry import Symmetry
 from o3d_spectral.synthetic.instance import Instance
 
@@ -169,8 +172,8 @@ class BopSet:
                      None if objects is None else tuple(objects))
         self.name = f"{self.root.resolve().name}_{split}_{kind}"
         self.condition = f"bop_{kind}"
-        self.models_dir = _models_dir(self.root)
-        self.models_info = read_json(self.models_dir / "models_info.json", "the models' info")
+        self.surfaces_dir, self.points_dir = _models_dirs(self.root)
+        self.models_info = read_json(self.surfaces_dir / "models_info.json", "the models' info")
         self._targets = _targets(self.root, split, scenes, objects)
         if not self._targets:
             raise ValueError(f"no annotated objects in {self.root / split} for scenes "
@@ -186,7 +189,7 @@ class BopSet:
 
     def model(self, object_id: int) -> _Model:
         """The model of ``object_id`` (read once per process)."""
-        return _read_model(str(self.models_dir), object_id,
+        return _read_model(str(self.surfaces_dir), str(self.points_dir), object_id,
                            json.dumps(self.models_info.get(str(object_id))))
 
     def _scene_dir(self, target: _Target) -> Path:
@@ -252,12 +255,16 @@ class BopSet:
         }
 
 
-def _models_dir(root: Path) -> Path:
-    for name in ("models_eval", "models"):
-        if (root / name / "models_info.json").is_file():
-            return root / name
-    raise FileNotFoundError(f"no models_eval/models_info.json or models/models_info.json in "
-                            f"{root}: is it a BOP dataset folder?")
+def _models_dirs(root: Path) -> tuple[Path, Path]:
+    """The folders of the models' surfaces (``models/``, else ``models_eval/``) and of
+    their points (``models_eval/``, else ``models/``); ``FileNotFoundError`` if neither
+    holds a ``models_info.json``."""
+    found = [root / name for name in ("models", "models_eval")
+             if (root / name / "models_info.json").is_file()]
+    if not found:
+        raise FileNotFoundError(f"no models/models_info.json or models_eval/models_info.json "
+                                f"in {root}: is it a BOP dataset folder?")
+    return found[0], found[-1]
 
 
 @cache
@@ -268,25 +275,44 @@ def _scene_file(scene: Path, name: str) -> dict:
     return document
 
 
+def _model_points(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points (m) and normals of a model file: a mesh's vertices and vertex normals, or a
+    cloud's points with its normals (estimated and oriented outward when it has none)."""
+    mesh = o3d.io.read_triangle_mesh(str(check_cloud_file(path)))
+    if len(mesh.triangles) > 0:
+        if not mesh.has_vertex_normals():
+            mesh.compute_vertex_normals()
+        points, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
+    else:
+        cloud = o3d.io.read_point_cloud(str(path))
+        if cloud.is_empty():
+            raise ValueError(f"{path}: Open3D read no points from it")
+        if not cloud.has_normals():
+            cloud.estimate_normals()
+            orient_outward(cloud)
+        points, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
+    return _MM * points, normals.copy()
+
+
 @cache
-def _read_model(folder: str, object_id: int, info_text: str) -> _Model:
-    """A model from ``obj_<id>.ply`` (mm) and its ``models_info.json`` entry."""
-    path = Path(folder) / f"obj_{object_id:06d}.ply"
+def _read_model(surfaces: str, points: str, object_id: int, info_text: str) -> _Model:
+    """A model: its surface ``<surfaces>/obj_<id>.ply`` (mm), its points (and normals)
+    from ``<points>/obj_<id>.ply``, and its ``models_info.json`` entry."""
+    name = f"obj_{object_id:06d}.ply"
+    where = f"{Path(surfaces) / 'models_info.json'}, object {object_id}"
     info = json.loads(info_text)
     if info is None:
-        raise ValueError(f"object {object_id} has no entry in {Path(folder) / 'models_info.json'}")
+        raise ValueError(f"{where}: no entry")
+    if "diameter" not in info:
+        raise ValueError(f"{where}: no diameter")
+    path = Path(surfaces) / name
     mesh = o3d.io.read_triangle_mesh(str(check_cloud_file(path)))
     if len(mesh.triangles) == 0:
         raise ValueError(f"{path}: no triangles (VSD renders the model's surface)")
     mesh.scale(_MM, center=np.zeros(3))
-    if not mesh.has_vertex_normals():
-        mesh.compute_vertex_normals()
-    points = np.asarray(mesh.vertices).copy()
-    where = f"{Path(folder) / 'models_info.json'}, object {object_id}"
-    if "diameter" not in info:
-        raise ValueError(f"{where}: no diameter")
-    return _Model(points, np.asarray(mesh.vertex_normals).copy(), mesh,
-                  _MM * float(info["diameter"]), symmetry_of(info, where))
+    vertices, normals = _model_points(Path(points) / name)
+    return _Model(vertices, normals, mesh, _MM * float(info["diameter"]),
+                  symmetry_of(info, where))
 
 
 def _targets(root: Path, split: str, scenes, objects) -> list[_Target]:

@@ -31,6 +31,25 @@ def _update_json(path: Path, key: str, value) -> None:
     path.write_text(json.dumps(ordered, indent=1) + "\n")
 
 
+def _write_ply(path: Path, points: np.ndarray, normals: np.ndarray,
+               triangles: np.ndarray | None = None) -> None:
+    """A binary PLY of single-precision points and normals, and triangles if given."""
+    vertex = np.empty(len(points), dtype=[(k, "<f4") for k in ("x", "y", "z", "nx", "ny", "nz")])
+    for k, column in zip(vertex.dtype.names, np.hstack([points, normals]).T, strict=True):
+        vertex[k] = column
+    header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
+    header += [f"property float {k}" for k in vertex.dtype.names]
+    faces = b""
+    if triangles is not None:
+        face = np.empty(len(triangles), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+        face["n"], face["v"] = 3, triangles
+        header += [f"element face {len(triangles)}", "property list uchar int vertex_indices"]
+        faces = face.tobytes()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(("\n".join([*header, "end_header"]) + "\n").encode() + vertex.tobytes()
+                     + faces)
+
+
 def diameter(points: np.ndarray) -> float:
     """The largest distance (m) between two of ``points`` (N, 3): over the vertices of
     their convex hull."""
@@ -55,9 +74,12 @@ def _symmetry_entries(symmetry: Symmetry) -> dict:
 
 
 def write_model(root: Path, object_id: int, mesh: o3d.geometry.TriangleMesh,
-                symmetry: Symmetry | None = None) -> Path:
+                symmetry: Symmetry | None = None,
+                points: o3d.geometry.PointCloud | None = None) -> Path:
     """Write ``models/obj_<id>.ply`` (millimetres, with vertex normals) and its entry of
-    ``models/models_info.json`` (diameter, bounding box, symmetries).
+    ``models/models_info.json`` (diameter, bounding box, symmetries); with ``points``,
+    also ``models_eval/obj_<id>.ply`` (the points, with their normals) and the same
+    entry in ``models_eval/models_info.json``.
 
     Parameters
     ----------
@@ -65,26 +87,35 @@ def write_model(root: Path, object_id: int, mesh: o3d.geometry.TriangleMesh,
         The dataset folder.
     object_id : int
     mesh : open3d.geometry.TriangleMesh
-        The model's surface in its own frame (m).
+        The model's surface in its own frame (m), which VSD renders.
     symmetry : Symmetry, optional
         Its symmetry group in that frame (none when omitted).
+    points : open3d.geometry.PointCloud, optional
+        The model's points (m) with normals, for the registrations, MSSD and MSPD; the
+        mesh's vertices when omitted.
     """
-    folder = Path(root) / "models"
-    folder.mkdir(parents=True, exist_ok=True)
     scaled = o3d.geometry.TriangleMesh(mesh)
     scaled.scale(_MM, center=np.zeros(3))
     if not scaled.has_vertex_normals():
         scaled.compute_vertex_normals()
-    path = folder / f"obj_{object_id:06d}.ply"
-    o3d.io.write_triangle_mesh(str(path), scaled, write_ascii=False)
+    name = f"obj_{object_id:06d}.ply"
+    _write_ply(Path(root) / "models" / name, np.asarray(scaled.vertices),
+               np.asarray(scaled.vertex_normals), np.asarray(scaled.triangles))
+    folders = ["models"]
     vertices = np.asarray(mesh.vertices)
+    if points is not None:
+        vertices = np.asarray(points.points)
+        _write_ply(Path(root) / "models_eval" / name, vertices * _MM,
+                   np.asarray(points.normals))
+        folders.append("models_eval")
     low, size = vertices.min(axis=0) * _MM, np.ptp(vertices, axis=0) * _MM
     info = {"diameter": diameter(vertices) * _MM}
     info |= {f"min_{a}": float(v) for a, v in zip("xyz", low, strict=True)}
     info |= {f"size_{a}": float(v) for a, v in zip("xyz", size, strict=True)}
     info |= _symmetry_entries(symmetry or Symmetry())
-    _update_json(folder / "models_info.json", str(object_id), info)
-    return path
+    for folder in folders:
+        _update_json(Path(root) / folder / "models_info.json", str(object_id), info)
+    return Path(root) / "models" / name
 
 
 def write_image(

@@ -54,6 +54,7 @@ __all__ = [
     "rotation_seed",
     "case_errors",
     "is_success",
+    "orient_outward",
     "ycbv_symmetry",
     "write_dragon_pairs",
 ]
@@ -310,11 +311,11 @@ def with_normals(case: RealCase, mode: str, motion: np.ndarray | None = None) ->
         if dragon:
             source.orient_normals_towards_camera_location(motion[:3, :3] @ sensor + motion[:3, 3])
         else:
-            _outward(source)
+            orient_outward(source)
     return case._replace(source=source, target=target)
 
 
-def _outward(model: o3d.geometry.PointCloud) -> None:
+def orient_outward(model: o3d.geometry.PointCloud) -> None:
     """A model's normals oriented consistently along its surface, then outward."""
     model.orient_normals_consistent_tangent_plane(10)
     points, normals = np.asarray(model.points), np.asarray(model.normals)
@@ -370,7 +371,7 @@ def ycbv_symmetry(class_name: str) -> Symmetry:
     """
     cloud = _cloud(f"ycbv/models/{class_name}.ply")
     cloud.estimate_normals()
-    _outward(cloud)
+    orient_outward(cloud)
     points = np.asarray(cloud.points)
     centre = points.mean(axis=0)
     principal = np.linalg.eigh(np.cov((points - centre).T))[1]
