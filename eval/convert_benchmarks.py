@@ -19,7 +19,9 @@ dragon scans in the 3DMatch layout.
 * ``models/obj_<id>.ply``: a surface of it for VSD: Open3D's screened Poisson
   reconstruction (octree depth 7) without the 5% of its vertices of lowest density
   (where no points are: it closes the mug's opening otherwise). Its distances to the
-  points are printed (and recorded in the folder's README);
+  points are printed (and recorded in the folder's README). Open3D's Poisson
+  reconstruction does not repeat to the bit (two runs here differ by up to 2 mm in
+  vertex positions, one thread or several): the surfaces in the package are one run's;
 * ``models_info.json``: diameters and the symmetries the harness finds for the bundled
   models (:func:`o3d_spectral.harness.real.ycbv_symmetry`).
 
