@@ -17,11 +17,13 @@ dragon scans in the 3DMatch layout.
   the registrations, MSSD and MSPD use; object ids are the classes' lines in
   ``classes.txt`` (BOP's YCB-V ids);
 * ``models/obj_<id>.ply``: a surface of it for VSD: Open3D's screened Poisson
-  reconstruction (octree depth 7) without the 5% of its vertices of lowest density
-  (where no points are: it closes the mug's opening otherwise). Its distances to the
+  reconstruction (octree depth 7) without its vertices farther than 1 cm from every
+  point (the surface it invents where there are none: across the mug's opening and
+  its handle's hole). Its distances to the
   points are printed (and recorded in the folder's README). Open3D's Poisson
   reconstruction does not repeat to the bit (two runs here differ by up to 2 mm in
-  vertex positions, one thread or several): the surfaces in the package are one run's;
+  vertex positions, one thread or several; one run in several ended in a crash inside
+  Open3D: run it again): the surfaces in the package are one run's;
 * ``models_info.json``: diameters and the symmetries the harness finds for the bundled
   models (:func:`o3d_spectral.harness.real.ycbv_symmetry`).
 
@@ -55,7 +57,7 @@ from o3d_spectral.harness.real import (
 
 FRAME = "0000_000001"
 SHAPE = (480, 640)
-POISSON_DEPTH, POISSON_TRIM = 7, 0.05
+POISSON_DEPTH, POISSON_TRIM = 7, 0.01  # octree depth; metres
 
 
 def _pixels(points: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -69,15 +71,16 @@ def _pixels(points: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def surface(points: np.ndarray) -> tuple[o3d.geometry.TriangleMesh, o3d.geometry.PointCloud, dict]:
-    """Screened Poisson surface of a model cloud, the cloud with its normals, and the
-    distances between the surface and the points (mm)."""
+    """Screened Poisson surface of a model cloud (less its vertices farther than
+    ``POISSON_TRIM`` from every point), the cloud with its normals, and the distances
+    between the surface and the points (mm)."""
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     cloud.estimate_normals()
     orient_outward(cloud)
     mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
         cloud, depth=POISSON_DEPTH)
-    density = np.asarray(density)
-    mesh.remove_vertices_by_mask(density < np.quantile(density, POISSON_TRIM))
+    far = cKDTree(points).query(np.asarray(mesh.vertices))[0] > POISSON_TRIM
+    mesh.remove_vertices_by_mask(far)
     mesh.compute_vertex_normals()
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))

@@ -278,8 +278,10 @@ def _scene_file(scene: Path, name: str) -> dict:
 def _model_points(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Points (m) and normals of a model file: a mesh's vertices and vertex normals, or a
     cloud's points with its normals (estimated and oriented outward when it has none)."""
-    mesh = o3d.io.read_triangle_mesh(str(check_cloud_file(path)))
-    if len(mesh.triangles) > 0:
+    with open(check_cloud_file(path), "rb") as handle:
+        header = handle.read(4096).split(b"end_header")[0]
+    mesh = o3d.io.read_triangle_mesh(str(path)) if b"element face" in header else None
+    if mesh is not None and len(mesh.triangles) > 0:
         if not mesh.has_vertex_normals():
             mesh.compute_vertex_normals()
         points, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
