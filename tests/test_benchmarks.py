@@ -192,3 +192,35 @@ def test_eval_and_report_on_both_benchmarks(bop_dir, pairs_dir, tmp_path, capsys
     assert main(["eval", "--out", str(out)]) == 2
     assert main(["eval", "--suite", str(out), "--scenes", "1", "--out", str(out)]) == 2
     assert "go with --bop" in capsys.readouterr().err
+
+
+def test_the_report_tables_count_by_hand():
+    """Two BOP rows: one exact, one that raised (wrong everywhere): every recall 0.5. Two
+    pairs: one recalled (2 degrees, 1 cm), one not: recall 0.5, RE 2, TE 1 cm."""
+    import pandas as pd
+
+    from o3d_spectral.harness.tables import bop_table, pairs_table
+
+    common = {"method": "m", "time_s": 1.0}
+    bop = pd.DataFrame([
+        {"suite": "s_crop", "condition": "bop_crop", "index": 0, "success": True,
+         "vsd": [0.0] * 10, "mssd_m": 0.0, "mspd_px": 0.0, "diameter_m": 0.1,
+         "image_width_px": 640, **common},
+        {"suite": "s_crop", "condition": "bop_crop", "index": 1, "success": False, **common},
+    ])
+    row = bop_table(bop).frame.iloc[0]
+    assert (row["n"], row["AR"], row["AR VSD"], row["AR MSSD"], row["AR MSPD"]) == (
+        2, 0.5, 0.5, 0.5, 0.5)
+    pairs = pd.DataFrame([
+        {"suite": "scene", "condition": "pairs", "index": 0, "success": True,
+         "recalled": True, "re_deg": 2.0, "te_m": 0.01, **common},
+        {"suite": "scene", "condition": "pairs", "index": 1, "success": False,
+         "recalled": False, "re_deg": 40.0, "te_m": 0.5, **common},
+    ])
+    row = pairs_table(pairs).frame.iloc[0]
+    assert (row["recall (%)"], row["RE (deg)"], row["TE (cm)"]) == (0.5, 2.0, 1.0)
+
+
+def test_mspd_of_a_pose_behind_the_camera_is_infinite():
+    points = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])
+    assert pose_metrics.mspd(np.eye(4), T_GT, points, K) == np.inf
