@@ -212,6 +212,10 @@ class BopSet:
         return T
 
     def __getitem__(self, index: int) -> Instance:
+        """Instance ``index``: the model's points (m, with normals) as the source, the
+        back-projected crop or frame (m, camera frame, normals to the camera) as the
+        target, BOP's model-to-camera pose as ``T_gt`` and the model's symmetries;
+        ``FileNotFoundError`` naming a missing depth image or mask."""
         target = self._targets[index]
         model = self.model(target.object_id)
         K, depth = self._camera(target)

@@ -147,6 +147,8 @@ class PairSet:
         return cloud
 
     def __getitem__(self, index: int) -> Instance:
+        """Pair ``index`` (in the order of ``(i, j)``): source ``cloud_bin_<j>``, target
+        ``cloud_bin_<i>`` (m, with normals), ``T_gt`` from ``gt.log``, no symmetry."""
         i, j = self.keys[index]
         target = self._cloud(i)
         metadata = {"condition": "pairs", "object": self.name, "fragments": [j, i]}
