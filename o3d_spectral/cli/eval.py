@@ -1,4 +1,5 @@
-"""Sub-command ``eval``: run registration methods on scene suites (resumable)."""
+"""Sub-command ``eval``: run registration methods on scene suites, BOP datasets or
+3DMatch-layout scan pairs (resumable)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,9 @@ EXAMPLES = (
     "  o3d-spectral eval --suite suites/full --cluster local --workers 2 --out results/run\n"
     "  o3d-spectral eval --suite suites/full --shard 0/2 --out /shared/run   # machine 1\n"
     "  o3d-spectral eval --suite suites/full --shard 1/2 --out /shared/run   # machine 2\n"
+    "  o3d-spectral eval --bop data/ycbv --split test --scenes 48 49 --limit 20 "
+    "--methods spectral_global fpfh_ransac --out results/ycbv\n"
+    "  o3d-spectral eval --pairs data/3dmatch --voxel-size 0.05 --out results/3dmatch\n"
     "\n"
     "Run it again with the same --out to resume: done (instance, method) pairs are skipped.\n"
     "Several sessions may write one --out at once (shards, machines); report merges them.\n"
@@ -31,7 +35,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "eval",
         help="run registration methods on scene suites, one results row per instance",
         description=(
-            "Run every method on every instance of the suites (make-suite output) and append "
+            "Run every method on every instance of the suites (make-suite output), of a BOP "
+            "dataset (--bop) or of 3DMatch-layout scan pairs (--pairs) and append "
             "one row per (instance, method) to OUT/results/SESSION.jsonl (the session's "
             "settings in OUT/sessions/SESSION.json); OUT/results.csv is the table of all "
             "sessions. Each worker runs one registration at a time on one thread."
@@ -43,10 +48,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--suite",
         nargs="+",
         action="extend",
-        required=True,
+        default=[],
         metavar="DIR",
         help="suite folder(s); repeatable",
     )
+    _add_benchmark_arguments(parser)
     parser.add_argument(
         "--methods", nargs="+", metavar="NAME", help="methods to run (default: all registered)"
     )
@@ -68,6 +74,43 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=eval_command)
 
 
+def _add_benchmark_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--bop`` with its split, scenes and objects, and ``--pairs``."""
+    parser.add_argument(
+        "--bop", metavar="DIR",
+        help="a BOP-format dataset: every annotated object against its visible-mask crop "
+        "and against the whole depth frame, scored also by BOP's VSD, MSSD, MSPD and AR",
+    )
+    parser.add_argument("--split", default="test", metavar="NAME",
+                        help="with --bop: the split folder (default test)")
+    parser.add_argument("--scenes", nargs="+", type=int, metavar="ID",
+                        help="with --bop: only these scene ids")
+    parser.add_argument("--objects", nargs="+", type=int, metavar="ID",
+                        help="with --bop: only these object ids")
+    parser.add_argument(
+        "--pairs", metavar="DIR",
+        help="a 3DMatch-layout folder (cloud_bin_*.ply, gt.log, gt.info), or a folder of "
+        "such scenes; scored also by registration recall (RE < 15 deg, TE < 30 cm)",
+    )
+
+
+def _instance_sets(args: argparse.Namespace) -> list:
+    """The suites' folders and the benchmarks' instance sets the arguments name."""
+    from o3d_spectral.cli import UsageError
+    from o3d_spectral.harness.sets import bop_sets, pair_sets
+
+    if not (args.suite or args.bop or args.pairs):
+        raise UsageError("give --suite, --bop or --pairs")
+    if args.bop is None and (args.scenes or args.objects or args.split != "test"):
+        raise UsageError("--split, --scenes and --objects go with --bop")
+    sets: list = list(args.suite)
+    if args.bop is not None:
+        sets += bop_sets(args.bop, args.split, scenes=args.scenes, objects=args.objects)
+    if args.pairs is not None:
+        sets += pair_sets(args.pairs)
+    return sets
+
+
 def _add_executor_and_selection_arguments(parser: argparse.ArgumentParser) -> None:
     """Where the registrations run (``--workers``, ``--cluster``) and which instances
     (``--limit``, ``--sample``, ``--shard``)."""
@@ -87,7 +130,9 @@ def _add_executor_and_selection_arguments(parser: argparse.ArgumentParser) -> No
     )
     chosen = parser.add_mutually_exclusive_group()
     chosen.add_argument(
-        "--limit", type=int, metavar="N", help="only the first N instances of each suite"
+        "--limit", type=int, metavar="N",
+        help="only the first N instances of each suite (of the crops and of the frames "
+        "of --bop, of each scene of --pairs)"
     )
     chosen.add_argument(
         "--sample",
@@ -150,7 +195,7 @@ def eval_command(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         table = run_eval(
-            args.suite,
+            _instance_sets(args),
             args.out,
             methods=args.methods,
             workers=args.workers,

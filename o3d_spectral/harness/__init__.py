@@ -11,7 +11,11 @@
 * :mod:`~o3d_spectral.harness.records`: what a run folder holds (sessions, results);
 * :mod:`~o3d_spectral.harness.tables`, :mod:`~o3d_spectral.harness.writers`,
   :mod:`~o3d_spectral.harness.figures`: result tables, their Markdown and LaTeX, plots;
-* :mod:`~o3d_spectral.harness.report`: the report of a run (``o3d-spectral report``).
+* :mod:`~o3d_spectral.harness.report`: the report of a run (``o3d-spectral report``);
+* :mod:`~o3d_spectral.harness.bop`, :mod:`~o3d_spectral.harness.bop_write`,
+  :mod:`~o3d_spectral.harness.pose_metrics`: datasets in the BOP layout and BOP's
+  metrics (VSD, MSSD, MSPD, AR); :mod:`~o3d_spectral.harness.pairs`: scan pairs in the
+  3DMatch layout; :mod:`~o3d_spectral.harness.sets`: the instance sets ``eval`` runs.
 
 The loop, tables and plots need the ``harness`` extra (pandas, matplotlib, tqdm):
 ``pip install 'o3d-spectral[harness]'``; Dask clusters the ``cluster`` extra, the peers the
@@ -24,6 +28,8 @@ and the pose errors both use.
 from o3d_spectral._lazy import lazy_attributes
 
 __all__ = [
+    "BopSet",
+    "PairSet",
     "SuccessCriteria",
     "Symmetry",
     "convergence_curves",
@@ -47,6 +53,8 @@ __all__ = [
 __getattr__ = lazy_attributes(
     __name__,
     {
+        "BopSet": "bop",
+        "PairSet": "pairs",
         "SuccessCriteria": "metrics",
         "Symmetry": "..synthetic.symmetry",
         "convergence_curves": "metrics",

@@ -54,7 +54,9 @@ __all__ = [
     "rotation_seed",
     "case_errors",
     "is_success",
+    "orient_outward",
     "ycbv_symmetry",
+    "write_dragon_pairs",
 ]
 
 #: Turntable angles (degrees) of the bundled dragon scans.
@@ -170,6 +172,46 @@ def _dragon_cases(step: int) -> list[RealCase]:
     return cases
 
 
+def write_dragon_pairs(out: str | Path, max_step: int = 72) -> Path:
+    """Write the dragon scans as a 3DMatch-layout scene folder (:mod:`~o3d_spectral.
+    harness.pairs`): ``cloud_bin_<k>.ply`` the scan at ``24 k`` degrees with normals
+    (Open3D's estimate turned to the scanner, :data:`DRAGON_SENSOR`), ``gt.log`` every
+    pair at most ``max_step`` degrees apart (72: the pairs sharing 55% or more of their
+    surface; 3DMatch lists those sharing over 30%) with the transformation taking scan
+    ``j`` onto scan ``i``, ``inv(W_i) W_j`` (:func:`dragon_pose`), and ``gt.info`` the
+    pairs' information matrices (Open3D's ``get_information_matrix_from_point_clouds``
+    within 2 mm, rows and columns reordered translation first).
+
+    Returns
+    -------
+    Path
+        The folder ``out`` (created if missing).
+    """
+    from o3d_spectral.harness.pairs import write_log
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    clouds = []
+    for k, angle in enumerate(DRAGON_ANGLES):
+        cloud = _cloud(f"dragon/dragonStandRight_{angle}.ply")
+        cloud.estimate_normals()
+        cloud.orient_normals_towards_camera_location(np.asarray(DRAGON_SENSOR))
+        o3d.io.write_point_cloud(str(out / f"cloud_bin_{k}.ply"), cloud)
+        clouds.append(cloud)
+    log, info = {}, {}
+    order = [3, 4, 5, 0, 1, 2]  # Open3D's (rotation, translation) to translation first
+    for i, a in enumerate(DRAGON_ANGLES):
+        for j, b in enumerate(DRAGON_ANGLES):
+            if 0 < b - a <= max_step:
+                log[(i, j)] = np.linalg.inv(dragon_pose(a)) @ dragon_pose(b)
+                matrix = o3d.pipelines.registration.get_information_matrix_from_point_clouds(
+                    clouds[j], clouds[i], 0.002, log[(i, j)])
+                info[(i, j)] = np.asarray(matrix)[np.ix_(order, order)]
+    write_log(out / "gt.log", log, len(DRAGON_ANGLES))
+    write_log(out / "gt.info", info, len(DRAGON_ANGLES))
+    return out
+
+
 def _ycbv_cases(group: str) -> list[RealCase]:
     cases = []
     for name in YCBV_CLASSES:
@@ -269,11 +311,11 @@ def with_normals(case: RealCase, mode: str, motion: np.ndarray | None = None) ->
         if dragon:
             source.orient_normals_towards_camera_location(motion[:3, :3] @ sensor + motion[:3, 3])
         else:
-            _outward(source)
+            orient_outward(source)
     return case._replace(source=source, target=target)
 
 
-def _outward(model: o3d.geometry.PointCloud) -> None:
+def orient_outward(model: o3d.geometry.PointCloud) -> None:
     """A model's normals oriented consistently along its surface, then outward."""
     model.orient_normals_consistent_tangent_plane(10)
     points, normals = np.asarray(model.points), np.asarray(model.normals)
@@ -329,7 +371,7 @@ def ycbv_symmetry(class_name: str) -> Symmetry:
     """
     cloud = _cloud(f"ycbv/models/{class_name}.ply")
     cloud.estimate_normals()
-    _outward(cloud)
+    orient_outward(cloud)
     points = np.asarray(cloud.points)
     centre = points.mean(axis=0)
     principal = np.linalg.eigh(np.cov((points - centre).T))[1]

@@ -107,8 +107,10 @@ _PACKAGES = {
 
 
 def suite_name(suite: Suite) -> str:
-    """The name a suite has in a run: its folder's name."""
-    return suite.root.resolve().name
+    """The name a suite has in a run: its folder's name (or the ``name`` of a benchmark's
+    instance set, :class:`~o3d_spectral.harness.bop.BopSet`,
+    :class:`~o3d_spectral.harness.pairs.PairSet`)."""
+    return getattr(suite, "name", None) or suite.root.resolve().name
 
 
 def new_session_id() -> str:

@@ -24,7 +24,9 @@ from o3d_spectral.harness.selection import TUNING_SPLIT, in_tuning_split
 from o3d_spectral.harness.tables import (
     Table,
     ambiguity_table,
+    bop_table,
     comparison_table,
+    pairs_table,
     paper_table,
     spectral_methods,
     summary_table,
@@ -99,6 +101,8 @@ def _markdown_report(
         "comparison": "Where spectral loses (automatic comparison)",
         "ambiguity": "What the views leave open",
         "summary_held_out": "Success rate and time off the tuning split",
+        "bop": "BOP's average recall (AR)",
+        "pairs": "Registration recall of scan pairs",
     }
     for table in tables:
         parts += [f"\n## {titles[table.name]}\n", f"{table.caption}\n", "\n" + to_markdown(table)]
@@ -197,6 +201,11 @@ def make_report(
         tables.append(comparison_table(summary, spectral))
     if "indistinguishable" in frame:
         tables.append(ambiguity_table(frame))
+    condition = frame["condition"].astype(str)
+    if condition.str.startswith("bop_").any():
+        tables.append(bop_table(frame))
+    if condition.str.startswith("pairs").any():
+        tables.append(pairs_table(frame))
     held_out = _held_out_summary(frame, config)
     if held_out is not None:
         tables.append(held_out)

@@ -26,6 +26,7 @@ import numpy as np
 
 from o3d_spectral._checks import check_voxel_size
 from o3d_spectral.harness._optional import require
+from o3d_spectral.harness.bop import BopSet
 from o3d_spectral.harness.executors import dask_cluster, local_pool
 from o3d_spectral.harness.methods import get_method, method_names, method_settings
 from o3d_spectral.harness.metrics import (
@@ -35,6 +36,7 @@ from o3d_spectral.harness.metrics import (
     instance_metrics,
     registration_fit,
 )
+from o3d_spectral.harness.pairs import PairSet
 from o3d_spectral.harness.records import (
     CURVE_COLUMNS,
     append_row,
@@ -48,6 +50,7 @@ from o3d_spectral.harness.records import (
     write_session,
 )
 from o3d_spectral.harness.selection import in_tuning_split, parse_shard, selected_indices
+from o3d_spectral.harness.sets import open_set, set_spec
 from o3d_spectral.synthetic.suite import Suite, load_suite
 
 __all__ = ["run_eval", "task_seed"]
@@ -64,7 +67,7 @@ _METADATA = (
 
 @dataclass(frozen=True)
 class _Task:
-    suite_dir: str
+    spec: tuple  # what opens the instance set (:func:`~o3d_spectral.harness.sets.open_set`)
     suite: str
     index: int
     method: str
@@ -78,11 +81,6 @@ def task_seed(seed: int, condition: str, suite_seed: int, index: int, method: st
     condition and seed, the instance index and the method name."""
     words = [seed, suite_seed, index, zlib.crc32(condition.encode()), zlib.crc32(method.encode())]
     return int(np.random.SeedSequence(words).generate_state(1)[0] & 0x7FFFFFFF)
-
-
-@functools.cache
-def _suite(suite_dir: str) -> Suite:
-    return load_suite(suite_dir)
 
 
 @functools.cache
@@ -111,7 +109,8 @@ def _run_task(task: _Task) -> dict:
     """Run one method on one instance (in a worker) and return its results row. A missing
     or corrupt instance file raises (naming it), which stops the eval: it is not the
     method's failure."""
-    instance = _suite(task.suite_dir)[task.index]
+    instances = open_set(task.spec)
+    instance = instances[task.index]
     method = get_method(task.method)
     start = time.perf_counter()
     try:
@@ -127,10 +126,13 @@ def _run_task(task: _Task) -> dict:
         row["success"] = False
         return row
     row |= instance_metrics(transformation, instance, criteria=task.criteria)
-    # A wrong pose: can the observation rule it out? (None for a success.)
-    row["indistinguishable"] = (
-        None if row["success"] else indistinguishable(transformation, instance)
-    )
+    if isinstance(instances, Suite):  # a bundled model's mesh tells what the view shows
+        # A wrong pose: can the observation rule it out? (None for a success.)
+        row["indistinguishable"] = (
+            None if row["success"] else indistinguishable(transformation, instance)
+        )
+    else:  # the benchmark's own scores: BOP's errors, or registration recall's
+        row |= instances.score(transformation, task.index)
     row["fitness"], row["inlier_rmse"] = registration_fit(
         transformation, instance, distance=task.voxel_size
     )
@@ -158,7 +160,7 @@ class _Selection:
 
 
 def _tasks(
-    suites: list[Suite],
+    suites: list[Suite | BopSet | PairSet],
     methods: list[str],
     done: set,
     *,
@@ -188,7 +190,7 @@ def _tasks(
                     continue
                 method_seed = task_seed(seed, condition, suite_seed, index, method)
                 tasks.append(
-                    _Task(str(suite.root), name, index, method, method_seed, voxel_size, criteria)
+                    _Task(set_spec(suite), name, index, method, method_seed, voxel_size, criteria)
                 )
     return tasks
 
@@ -226,14 +228,14 @@ def _counted(rows: Iterator[dict], bar) -> Iterator[dict]:
 
 
 def _inputs(
-    suites: Sequence[str | Path],
+    suites: Sequence[str | Path | BopSet | PairSet],
     methods: Sequence[str] | None,
     *,
     workers: int,
     voxel_size: float,
     selection: _Selection,
     plugins: Sequence[str],
-) -> tuple[list[str], list[Suite]]:
+) -> tuple[list[str], list[Suite | BopSet | PairSet]]:
     """Check the arguments of :func:`run_eval`, import the plugins; the method names and
     the loaded suites."""
     if not suites:
@@ -252,7 +254,7 @@ def _inputs(
     methods = list(method_names() if methods is None else methods)
     for method in methods:
         get_method(method)
-    loaded = [load_suite(path) for path in suites]
+    loaded = [s if isinstance(s, BopSet | PairSet) else load_suite(s) for s in suites]
     names = [suite_name(suite) for suite in loaded]
     if len(set(names)) != len(names):
         raise ValueError(f"suites must have distinct folder names, got {names}")
@@ -293,7 +295,7 @@ def _session(
 
 
 def run_eval(
-    suites: Sequence[str | Path],
+    suites: Sequence[str | Path | BopSet | PairSet],
     out_dir: str | Path,
     *,
     methods: Sequence[str] | None = None,
@@ -317,8 +319,11 @@ def run_eval(
 
     Parameters
     ----------
-    suites : sequence of str or Path
-        Suite folders (``make-suite`` output); their folder names must differ.
+    suites : sequence of str, Path, BopSet or PairSet
+        Suite folders (``make-suite`` output), or the instances of a BOP dataset
+        (:class:`~o3d_spectral.harness.bop.BopSet`) or of a 3DMatch-layout scene
+        (:class:`~o3d_spectral.harness.pairs.PairSet`), whose rows also hold the
+        benchmark's scores (their ``score``); their names must differ.
     out_dir : str or Path
         Run folder (created if missing).
     methods : sequence of str, optional

@@ -8,7 +8,9 @@
   median and 90th-percentile time;
 * ``comparison``: each spectral method against the most successful other method, suite
   by suite, with a plain verdict (where spectral loses);
-* ``ambiguity``: per suite, the instances whose view leaves a wrong pose open.
+* ``ambiguity``: per suite, the instances whose view leaves a wrong pose open;
+* ``bop``: on a BOP dataset's instances, BOP's average recalls (AR, VSD, MSSD, MSPD);
+* ``pairs``: on 3DMatch-layout scan pairs, registration recall, RE and TE.
 
 Also the order and labels of methods and suites that the plots share.
 """
@@ -28,9 +30,11 @@ __all__ = [
     "PAPER_CONDITIONS",
     "Table",
     "ambiguity_table",
+    "bop_table",
     "by_suite_and_method",
     "comparison_table",
     "method_order",
+    "pairs_table",
     "paper_table",
     "spectral_methods",
     "suite_label",
@@ -284,3 +288,74 @@ def comparison_table(summary: Table, spectral: list[str]) -> Table:
         "the verdict is on the success rate alone."
     )
     return Table("comparison", caption, result, formats)
+
+
+def _benchmark_cells(frame: pd.DataFrame, prefix: str, columns: list[str]):
+    """(suite label, method, runs) of the suites whose condition starts with ``prefix``,
+    in the usual order, with ``columns`` (NaN where a run has none: it raised)."""
+    here = frame[frame["condition"].astype(str).str.startswith(prefix)]
+    here = here.assign(**{c: float("nan") for c in columns if c not in here})
+    cells = by_suite_and_method(here, [*columns, "success", "time_s"])
+    for suite, condition in suite_order(here):
+        for method in method_order(here):
+            runs = cells.get((suite, method))
+            if runs is not None:
+                yield suite_label(suite, condition), method, runs
+
+
+def bop_table(frame: pd.DataFrame) -> Table:
+    """On BOP instances (conditions ``bop_*``), per suite and method: BOP's recalls."""
+    import numpy as np
+
+    from o3d_spectral.harness import pose_metrics as pm
+
+    pandas = require("pandas")
+    rows = []
+    columns = ["vsd", "mssd_m", "mspd_px", "diameter_m", "image_width_px"]
+    for suite, method, runs in _benchmark_cells(frame, "bop_", columns):
+        missing = [float("nan")] * len(pm.VSD_TAUS)
+        vsd = np.array([v if isinstance(v, list) else missing for v in runs["vsd"]])
+        recalls = {
+            "AR VSD": pm.vsd_recall(vsd),
+            "AR MSSD": pm.mssd_recall(runs["mssd_m"].astype(float), runs["diameter_m"]),
+            "AR MSPD": pm.mspd_recall(runs["mspd_px"].astype(float),
+                                      runs["image_width_px"].fillna(640)),
+        }
+        rows.append({"suite": suite, "method": method, "n": len(runs),
+                     "AR": pm.average_recall(*recalls.values()), **recalls,
+                     "success (%)": runs["success"].astype(bool).mean(),
+                     "median time (s)": runs["time_s"].median()})
+    result = pandas.DataFrame(rows)
+    formats = {"suite": "text", "method": "text", "n": "int", "AR": "f3", "AR VSD": "f3",
+               "AR MSSD": "f3", "AR MSPD": "f3", "success (%)": "pct", "median time (s)": "f3"}
+    caption = (
+        "BOP's average recalls (2019+): VSD (delta 15 mm, tau 0.05-0.5 of the diameter, "
+        "thresholds 0.05-0.5), MSSD (0.05-0.5 of the diameter) and MSPD (5-50 px at 640 px "
+        "wide), symmetries from models_info.json; AR is their mean. A run that raised "
+        "counts as wrong. `success`: the harness's own (symmetry-aware, 5 deg and 1 cm)."
+    )
+    return Table("bop", caption, result, formats)
+
+
+def pairs_table(frame: pd.DataFrame) -> Table:
+    """On scan pairs (condition ``pairs``), per scene and method: registration recall
+    (RE < 15 deg and TE < 30 cm), mean RE and TE over the recalled pairs, time."""
+    pandas = require("pandas")
+    rows = []
+    for suite, method, runs in _benchmark_cells(frame, "pairs", ["recalled", "re_deg", "te_m"]):
+        recalled = runs["recalled"].map(lambda v: v is True or v == 1.0).astype(bool)
+        rows.append({"scene": suite, "method": method, "pairs": len(runs),
+                     "recall (%)": recalled.mean(),
+                     "RE (deg)": runs["re_deg"][recalled].astype(float).mean(),
+                     "TE (cm)": 100 * runs["te_m"][recalled].astype(float).mean(),
+                     "success (%)": runs["success"].astype(bool).mean(),
+                     "median time (s)": runs["time_s"].median()})
+    result = pandas.DataFrame(rows)
+    formats = {"scene": "text", "method": "text", "pairs": "int", "recall (%)": "pct",
+               "RE (deg)": "f2", "TE (cm)": "f2", "success (%)": "pct", "median time (s)": "f3"}
+    caption = (
+        "Registration recall: pairs with rotation error < 15 deg and translation error "
+        "< 30 cm (at the source frame's origin); RE and TE: means over the recalled "
+        "pairs. `success`: the harness's own (5 deg, 1 cm at the source's centroid)."
+    )
+    return Table("pairs", caption, result, formats)

@@ -112,6 +112,10 @@ class Instance:
         Pose of the model mesh in the source frame: ``source = source_from_model @ mesh``.
     metadata : dict
         JSON-serialisable description (see ``docs/suites.md``).
+    known_symmetry : Symmetry or None
+        The object's symmetry group in the source frame, for an object that is not one of
+        the bundled models (a BOP dataset's, from its ``models_info.json``; a scan pair's,
+        trivial); None for a bundled model, whose group is found on its mesh.
     """
 
     source: o3d.geometry.PointCloud
@@ -120,6 +124,7 @@ class Instance:
     target_labels: np.ndarray
     source_from_model: np.ndarray
     metadata: dict
+    known_symmetry: Symmetry | None = None
 
     @property
     def object(self) -> str:
@@ -135,5 +140,7 @@ class Instance:
     @property
     def symmetry(self) -> Symmetry:
         """Symmetry group of the object, expressed in the source frame."""
+        if self.known_symmetry is not None:
+            return self.known_symmetry
         return model_symmetry(self.object).transformed(self.source_from_model)
 

@@ -1,0 +1,166 @@
+"""Scan pairs in the 3DMatch layout, as registration instances scored by registration recall.
+
+A scene folder holds fragments ``cloud_bin_<k>.ply`` and the ground truth ``gt.log`` with
+``gt.info`` (there or in the sibling folder ``<scene>-evaluation/``, as the 3DMatch
+benchmark ships them). ``gt.log`` lists pairs as blocks of five lines::
+
+    i  j  n            (fragment ids, fragments in the scene)
+    4x4 transformation, one row a line
+
+where the transformation takes fragment ``j`` onto fragment ``i``: the instance's source
+is ``cloud_bin_<j>``, its target ``cloud_bin_<i>``. ``gt.info`` has the same header line
+followed by a 6x6 information matrix (translation first) per pair; it is checked to list
+the same pairs but is not used for scoring.
+
+A pair is recalled when the rotation error is under 15 degrees and the translation error
+(of the transformations, at the source frame's origin) under 30 cm, the criterion of the
+3DMatch results of FCGF, DGR and later work. Fragments carry the normals of their file,
+else normals estimated by Open3D and turned to the fragment frame's origin (the first
+camera of a 3DMatch fragment).
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+
+from o3d_spectral._files import check_cloud_file, check_finite
+from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.synthetic.instance import Instance
+
+__all__ = ["MAX_ROTATION_DEG", "MAX_TRANSLATION_M", "PairSet", "pair_scenes", "read_log",
+           "write_log"]
+
+#: Registration recall's thresholds.
+MAX_ROTATION_DEG, MAX_TRANSLATION_M = 15.0, 0.30
+
+
+def read_log(path: Path, size: int = 4) -> dict[tuple[int, int], np.ndarray]:
+    """The pairs of a ``gt.log`` (``size`` 4) or ``gt.info`` (``size`` 6) file: by
+    ``(i, j)``, the ``size`` x ``size`` matrix; ``ValueError`` naming the file and line of
+    a malformed block."""
+    if not path.is_file():
+        raise FileNotFoundError(f"no {path.name} at {path}")
+    lines = [line.split() for line in path.read_text().splitlines() if line.strip()]
+    pairs = {}
+    for start in range(0, len(lines), size + 1):
+        block = lines[start:start + size + 1]
+        try:
+            i, j = int(block[0][0]), int(block[0][1])
+            matrix = np.array([[float(v) for v in row] for row in block[1:]], dtype=np.float64)
+            if matrix.shape != (size, size):
+                raise ValueError(f"a {matrix.shape} matrix")
+        except (IndexError, ValueError) as error:
+            raise ValueError(f"{path}, line {start + 1}: not a pair block ({error})") from None
+        pairs[(i, j)] = matrix
+    if not pairs:
+        raise ValueError(f"{path} lists no pairs")
+    return pairs
+
+
+def write_log(path: Path, pairs: dict[tuple[int, int], np.ndarray], fragments: int) -> None:
+    """Write ``pairs`` (by ``(i, j)``, 4x4 or 6x6 matrices) as ``gt.log`` / ``gt.info``."""
+    lines = []
+    for (i, j), matrix in sorted(pairs.items()):
+        lines.append(f"{i}\t{j}\t{fragments}")
+        lines += ["\t".join(f"{v:.10e}" for v in row) for row in np.asarray(matrix)]
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def _truth_dir(scene: Path) -> Path:
+    for folder in (scene, scene.parent / f"{scene.name}-evaluation"):
+        if (folder / "gt.log").is_file():
+            return folder
+    raise FileNotFoundError(f"no gt.log in {scene} nor in {scene.name}-evaluation/ beside it")
+
+
+def pair_scenes(root: str | Path) -> list[Path]:
+    """The scene folders of ``root``: itself when it holds ``cloud_bin_*.ply``, else its
+    sub-folders that do (the 3DMatch test set's layout); ``FileNotFoundError`` if none."""
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"no pairs folder at {root}")
+    if any(root.glob("cloud_bin_*.ply")):
+        return [root]
+    scenes = sorted(p for p in root.iterdir() if p.is_dir() and any(p.glob("cloud_bin_*.ply")))
+    if not scenes:
+        raise FileNotFoundError(f"no cloud_bin_*.ply in {root} nor in its sub-folders")
+    return scenes
+
+
+@cache
+def _fragment(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points (m) and normals of one fragment, read once per process."""
+    cloud = o3d.io.read_point_cloud(str(check_cloud_file(path)))
+    if cloud.is_empty():
+        raise ValueError(f"{path}: Open3D read no points from it")
+    check_finite(np.asarray(cloud.points), path)
+    if not cloud.has_normals():
+        cloud.estimate_normals()
+        cloud.orient_normals_towards_camera_location(np.zeros(3))
+    return np.asarray(cloud.points).copy(), np.asarray(cloud.normals).copy()
+
+
+class PairSet:
+    """The pairs of one 3DMatch-layout scene folder, read lazily (see the module doc).
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming the missing ``gt.log``, ``gt.info`` or fragment.
+    ValueError
+        For a malformed ``gt.log`` or ``gt.info``, or one listing other pairs.
+    """
+
+    def __init__(self, scene: str | Path) -> None:
+        self.root = Path(scene)
+        truth = _truth_dir(self.root)
+        self.pairs = read_log(truth / "gt.log")
+        info = read_log(truth / "gt.info", 6)
+        if set(info) != set(self.pairs):
+            raise ValueError(f"{truth / 'gt.info'} lists other pairs than {truth / 'gt.log'}")
+        self.keys = sorted(self.pairs)
+        for i, j in self.keys:
+            for k in (i, j):
+                if not (self.root / f"cloud_bin_{k}.ply").is_file():
+                    raise FileNotFoundError(f"{truth / 'gt.log'} lists fragment {k}, but "
+                                            f"there is no {self.root / f'cloud_bin_{k}.ply'}")
+        self.spec = ("pairs", str(self.root.resolve()))
+        self.name = self.root.resolve().name
+        self.condition = "pairs"
+        self.manifest = {"seed": 0, "instances": [{"condition": "pairs"}] * len(self)}
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def __repr__(self) -> str:
+        return f"PairSet({str(self.root)!r}, n={len(self)})"
+
+    def _cloud(self, k: int) -> o3d.geometry.PointCloud:
+        points, normals = _fragment(self.root / f"cloud_bin_{k}.ply")
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+        cloud.normals = o3d.utility.Vector3dVector(normals)
+        return cloud
+
+    def __getitem__(self, index: int) -> Instance:
+        """Pair ``index`` (in the order of ``(i, j)``): source ``cloud_bin_<j>``, target
+        ``cloud_bin_<i>`` (m, with normals), ``T_gt`` from ``gt.log``, no symmetry."""
+        i, j = self.keys[index]
+        target = self._cloud(i)
+        metadata = {"condition": "pairs", "object": self.name, "fragments": [j, i]}
+        return Instance(self._cloud(j), target, self.pairs[(i, j)].copy(),
+                        np.zeros(len(target.points), int), np.eye(4), metadata,
+                        known_symmetry=Symmetry())
+
+    def score(self, transformation: np.ndarray, index: int) -> dict:
+        """Registration recall's errors of an estimate of pair ``index``: ``re_deg``,
+        ``te_m`` (at the source frame's origin) and ``recalled``."""
+        T_gt = self.pairs[self.keys[index]]
+        re = rotation_error(transformation, T_gt)
+        te = translation_error(transformation, T_gt)
+        return {"re_deg": re, "te_m": te,
+                "recalled": bool(re < MAX_ROTATION_DEG and te < MAX_TRANSLATION_M)}
