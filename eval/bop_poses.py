@@ -6,7 +6,7 @@ and translation errors of the harness, VSD at three of its ``tau`` (0.05, 0.25, 
 the diameter), the VSD, MSSD and MSPD recalls of that one pose, and whether the harness
 counts it a success. Then the ground truth turned by a few angles about the model's axis
 of (near) rotational symmetry (the principal axis about which a quarter turn fits the
-model cloud best, refined by ``o3d_spectral.harness.symmetry.refine_axis``), with its
+model cloud best, refined by ``o3d_spectral.synthetic.symmetry.refine_axis``), with its
 VSD and MSSD: what a metric says of poses that differ by a turn about the axis.
 
 Usage: python eval/bop_poses.py RUN [--dataset o3d_spectral/datasets/bop_ycbv]
@@ -22,11 +22,11 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from o3d_spectral import so3
 from o3d_spectral.harness import pose_metrics as pm
 from o3d_spectral.harness.bop import BopSet
 from o3d_spectral.harness.records import load_results
-from o3d_spectral.harness.symmetry import refine_axis
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.symmetry import refine_axis
 
 TURNS_DEG = (0, 5, 10, 20, 45, 90, 180)
 TAUS = (0, 4, 9)  # indices of tau 0.05, 0.25, 0.5

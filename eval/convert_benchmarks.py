@@ -46,7 +46,6 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from o3d_spectral import so3
 from o3d_spectral.harness import bop_write, pose_metrics
 from o3d_spectral.harness.real import (
     YCBV_CLASSES,
@@ -54,6 +53,7 @@ from o3d_spectral.harness.real import (
     write_dragon_pairs,
     ycbv_symmetry,
 )
+from o3d_spectral.spectra import so3
 
 FRAME = "0000_000001"
 SHAPE = (480, 640)

@@ -8,13 +8,13 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral import so3
 from o3d_spectral.cli import main
 from o3d_spectral.harness import bop_write, pose_metrics
 from o3d_spectral.harness.bop import BopSet, symmetry_of
 from o3d_spectral.harness.pairs import PairSet, read_log, write_log
 from o3d_spectral.harness.real import real_dir, write_dragon_pairs
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 K = np.array([[600.0, 0.0, 320.0], [0.0, 600.0, 240.0], [0.0, 0.0, 1.0]])
 SHAPE = (480, 640)

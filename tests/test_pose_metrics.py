@@ -6,9 +6,9 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral import so3
 from o3d_spectral.harness import pose_metrics as pm
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 K = np.array([[600.0, 0.0, 320.0], [0.0, 600.0, 240.0], [0.0, 0.0, 1.0]])
 SHAPE = (480, 640)

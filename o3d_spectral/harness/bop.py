@@ -33,11 +33,11 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral._files import check_cloud_file
 from o3d_spectral.harness import pose_metrics
 from o3d_spectral.harness.real import orient_outward
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.io._files import check_cloud_file
 from o3d_spectral.synthetic.instance import Instance
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = ["FRAME_VOXEL", "KINDS", "MIN_VISIBLE", "BopSet", "symmetry_of",
            "back_project", "read_json"]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = ["diameter", "write_image", "write_model"]
 

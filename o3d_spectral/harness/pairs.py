@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral._files import check_cloud_file, check_finite
 from o3d_spectral.harness.errors import rotation_error, translation_error
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.io._files import check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import Instance
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = ["MAX_ROTATION_DEG", "MAX_TRANSLATION_M", "PairSet", "pair_scenes", "read_log",
            "write_log"]

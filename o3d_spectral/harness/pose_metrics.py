@@ -41,7 +41,7 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral.harness.errors import mssd as _mssd
-from o3d_spectral.harness.symmetry import Symmetry
+from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = [
     "CONTINUOUS_STEPS",
