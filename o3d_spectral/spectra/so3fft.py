@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
 
@@ -151,13 +152,31 @@ def correlation_grid(
     g, f = G @ W.T, F @ W.T  # (S, B, 2B-1): g^l = W G^l
     products = np.einsum("slm,sln->lmn", g.conj(), f)  # summed over the stack
     K = np.einsum("jlmn,lmn->jmn", _delta(B, n_beta), products)  # (n_beta, m, n)
-    # Place order m at FFT index m mod n_alpha, then sum_mn K exp(i (m a + n c)).
-    spectrum = np.zeros((n_beta, n_alpha, n_alpha), dtype=np.complex128)
-    idx = np.arange(-(B - 1), B) % n_alpha
-    spectrum[:, idx[:, None], idx[None, :]] = K
-    values = np.fft.ifft2(spectrum, axes=(1, 2)).real * (n_alpha**2) / (4.0 * np.pi)
+    values = _real_fourier_sum(K, n_alpha) / (4.0 * np.pi)
     angles = 2.0 * np.pi * np.arange(n_alpha) / n_alpha
     return CorrelationGrid(values, angles, np.pi * (np.arange(n_beta) + 0.5) / n_beta, angles)
+
+
+def _real_fourier_sum(K: NDArray[np.complex128], n: int) -> NDArray[np.float64]:
+    """``Re sum_mn K[j, m, n] exp(i (m a + n c))`` at ``a, c = 2 pi k / n`` (``k < n``),
+    orders ``-(B - 1) .. B - 1`` of ``K`` (J, 2B - 1, 2B - 1) on its last two axes:
+    shape (J, n, n).
+
+    The terms of ``(m, n)`` and ``(-m, -n)`` are summed first (their real parts add up
+    to that of ``(K_mn + conj K_-m-n) exp(i (m a + n c))``), so that only orders ``n >= 0``
+    remain: an inverse FFT over ``m`` of those ``B`` columns and a real inverse FFT over
+    ``n``, about a third of the work of the complex 2D transform of the whole grid, and
+    equal to it to rounding."""
+    B = (K.shape[-1] + 1) // 2
+    half = K[..., B - 1 :].copy()  # n = 0 .. B - 1
+    half[..., 1:] += np.conj(K[:, ::-1, B - 2 :: -1])  # + conj K[-m, -n] for n >= 1
+    half[..., 1:] /= 2.0  # irfft counts each n >= 1 twice
+    columns = np.zeros((K.shape[0], n, B), dtype=np.complex128)
+    columns[:, np.arange(-(B - 1), B) % n, :] = half
+    columns = scipy.fft.ifft(columns, axis=1, overwrite_x=True)
+    spectrum = np.zeros((K.shape[0], n, n // 2 + 1), dtype=np.complex128)
+    spectrum[..., :B] = columns
+    return scipy.fft.irfft(spectrum, n=n, axis=2, overwrite_x=True) * float(n) ** 2
 
 
 def visible_correlation_grid(
@@ -250,9 +269,12 @@ def peaks(
     order = np.argsort(v[is_peak])[::-1]
     indices = np.argwhere(is_peak)[order]
     chosen: list[tuple[NDArray[np.float64], float]] = []
+    kept = np.empty((count, 3, 3))  # the chosen rotations, for one test against them all
     for index in indices:
         R = grid.rotation(tuple(index))
-        if all(so3.rotation_angle(R.T @ other) >= min_separation for other, _ in chosen):
+        traces = np.einsum("ij,kij->k", R, kept[: len(chosen)])  # trace(R^T other)
+        if np.all(np.arccos(np.clip((traces - 1.0) / 2.0, -1.0, 1.0)) >= min_separation):
+            kept[len(chosen)] = R
             chosen.append((R, float(v[tuple(index)])))
             if len(chosen) == count:
                 break
