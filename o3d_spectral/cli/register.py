@@ -233,6 +233,8 @@ def _summary(result, voxel_size: float) -> dict:
         "transformation": result.transformation.tolist(),
         "voxel_size": voxel_size,
         "fitness": result.fitness,
+        "fit": result.fit,
+        "rival_fit": result.rival_fit,
         "inlier_rmse": result.inlier_rmse,
         "max_correspondence_distance": result.max_correspondence_distance,
         "converged": result.converged,
@@ -298,7 +300,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         np.savetxt(out, result.transformation, fmt="%.9f")
         print(
-            f"fitness {result.fitness:.4f}  inlier_rmse {result.inlier_rmse:.6f} m  "
+            f"fitness {result.fitness:.4f}  fit {result.fit:.4f}  "
+            f"inlier_rmse {result.inlier_rmse:.6f} m  "
             f"(at {result.max_correspondence_distance} m)  converged {result.converged}  "
             f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
             + (f"  voxel_size {voxel_size:.4g} m (auto)" if auto else ""), file=out,
