@@ -12,8 +12,7 @@ and the size has to suit both:
 * **no finer than useful for the smaller cloud**: the overlap is at most the smaller
   cloud, and it must span enough voxels for its shape to tell rotations apart; beyond
   that a finer grid costs time (the grids grow as the cube) and does not register
-  better. The size is at least the smaller cloud's diameter over :data:`VOXELS_ACROSS`
-  (the grids of the object then have about the same size whatever its size);
+  better. The size is at least the smaller cloud's diameter over :data:`VOXELS_ACROSS`;
 * **coarse enough for the larger cloud's grid**: the fixed cloud's grid covers all of it
   (a whole scene), and the moving cloud is placed by phase correlation over all of it:
   on a fine grid of a whole scene, the places where clutter matches the object
@@ -41,20 +40,21 @@ from .cloud import as_arrays, dense_bounds
 __all__ = ["suggest_voxel_size", "spacing", "SPACINGS", "VOXELS_ACROSS", "MAX_VOXELS_ACROSS",
            "NEIGHBOURS", "SAMPLES", "MAX_TREE_POINTS"]
 
-#: Chosen on the synthetic suites (objects with normals, 3000 points: 2.4-6.3 mm
-#: spacing) and the real scans (``eval/voxel_advice.py``, docs/results.md):
+#: Chosen on the synthetic suites (models of 3000 points: 2.4-6.3 mm spacing) and the
+#: real scans (``eval/voxel_advice.py``, docs/results.md):
 #:
 #: The voxel is at least this many times the sparser cloud's point spacing. Models of
-#: 3000 points on a 35 cm box (6.3 mm spacing) registered at 6 and 8 mm, not at 10 or
-#: 12 mm: a voxel a few times the spacing is not needed, one is.
+#: 3000 points on a 35 cm box (6.3 mm spacing) registered at 6-11 mm, not at 15.7 mm
+#: (2.5 spacings) in a scene or an occluded view: a few spacings are not needed, one is.
 SPACINGS = 1.0
 #: The voxel is at least the smaller cloud's diameter over this: the suites' objects
-#: (15-35 cm) at 8 mm span 18-44 voxels; the dragon scans (23-26 cm) registered alike
-#: from 3.5 to 8 mm (46-66 voxels down to 29).
+#: (15-35 cm) at 8 mm span 18-44 voxels, and registered as well at 6 mm, better in
+#: occluded views; the dragon scans (23-26 cm) registered alike from 3.5 to 10 mm when
+#: 24-72 degrees apart.
 VOXELS_ACROSS = 36.0
 #: The voxel is at least the larger cloud's diameter over this: a whole RGB-D frame
 #: (1.4 m) registered its objects at 8 mm (175 voxels across) and lost them at 4-7 mm
-#: (crops of the same objects registered at every size from 4 to 12 mm).
+#: (crops of the same objects registered at 5.2-12 mm).
 MAX_VOXELS_ACROSS = 175.0
 #: Neighbours the spacing is measured over (the k-th neighbour's distance ``r_k`` holds
 #: ``k`` points in a disc of area ``pi r_k^2``: a spacing of ``r_k sqrt(pi / k)``).
