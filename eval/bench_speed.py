@@ -105,16 +105,16 @@ def spectral_global(task: Task) -> tuple[np.ndarray, dict]:
     search = o3d_spectral.GlobalSearchOption(workers=1) if ONE_THREAD else None  # or default
     result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel,
                                                        search=search)
-    warned = any("low confidence" in w for w in result.warnings)
+    warned = any(w.startswith("low fit") for w in result.warnings)
     return np.asarray(result.transformation), {
-        "confirmed": result.confirmed, "fitness": result.fitness,
-        "confidence": result.confidence, "low_confidence_warning": warned}
+        "confirmed": result.confirmed, "fitness": result.fitness, "fit": result.fit,
+        "confidence": result.confidence, "low_fit_warning": warned}
 
 
 def fpfh_ransac(task: Task) -> tuple[np.ndarray, dict]:
     transformation, _ = get_method("fpfh_ransac")(task.source, task.target, task.voxel, task.seed)
-    return transformation, {"confirmed": False, "fitness": float("nan"),
-                            "confidence": float("nan"), "low_confidence_warning": False}
+    return transformation, {"confirmed": False, "fitness": float("nan"), "fit": float("nan"),
+                            "confidence": float("nan"), "low_fit_warning": False}
 
 
 CALLS = {"spectral_global": spectral_global, "fpfh_ransac": fpfh_ransac}

@@ -12,7 +12,8 @@ One model against many targets: :func:`prepare` it once and pass the
 :class:`PreparedSource` as the source. Settings: :class:`SpectralRegistrationOption`
 (representation and law), :class:`GlobalSearchOption`, :class:`RefinementOption`,
 :class:`CloudOption`, :class:`SpectralConvergenceCriteria`. Repeated calls against one
-fixed cloud (visual servoing): :class:`SpectralStepper`. See ``docs/architecture.md``
+fixed cloud (visual servoing): :class:`SpectralStepper`. A voxel size for two clouds:
+:func:`suggest_voxel_size`. See ``docs/architecture.md``
 for the modules and ``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic
 and bandwidth conventions.
 """
@@ -36,11 +37,13 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
     from .registration import registration_spectral, registration_spectral_global
     from .result import SpectralRegistrationResult
     from .stepper import Evaluation, MovingCloud, SpectralStepper
+    from .voxel import suggest_voxel_size
 
 __all__ = [
     "registration_spectral",
     "registration_spectral_global",
     "prepare",
+    "suggest_voxel_size",
     "PreparedSource",
     "SpectralRegistrationOption",
     "GlobalSearchOption",
@@ -62,6 +65,7 @@ __getattr__ = lazy_attributes(
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
         "prepare": "prepared",
+        "suggest_voxel_size": "voxel",
         "PreparedSource": "prepared",
         "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",

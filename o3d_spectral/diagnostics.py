@@ -10,7 +10,8 @@ to :attr:`o3d_spectral.SpectralRegistrationResult.warnings`:
   thinner than the points' spacing), and its surfaces are matched seen from either side;
 - a cloud's normals are nearly all alike (a plane): its EGI leaves the rotation about
   them free;
-- the global search's confidence is low (:data:`LOW_CONFIDENCE`).
+- the returned pose fits the target poorly, or a distinct pose the search found fits it
+  clearly better (:func:`low_fit`).
 """
 
 from __future__ import annotations
@@ -19,20 +20,41 @@ import logging
 
 from .io.cloud import CloudReading
 
-__all__ = ["FLAT", "LOW_CONFIDENCE", "registration_warnings"]
+__all__ = ["FLAT", "LOW_FIT", "RIVAL_LEAD", "low_fit", "registration_warnings"]
 
 logger = logging.getLogger(__name__)
 
 #: A cloud whose mean unit normal is at least this long is flat (:attr:`CloudReading.flatness`).
 FLAT = 0.97
-#: A global result whose confidence is below this is flagged (see docs/results.md for its
-#: precision on the suites and on real scans).
-LOW_CONFIDENCE = 0.02
+#: The failure signal's constants, chosen on the runs of ``eval/voxel_advice.py`` (the
+#: four suites, 96 instances each, and the real groups from 4 rotations each, at the
+#: hand-chosen voxel sizes: 508 calls, 80 wrong): among fits of 0.5-0.7 and leads of
+#: 0-0.2, the pair whose flags are most often right of those that flag at least as many
+#: wrong poses as Open3D's ``fitness`` under 0.5 (32% of its flags are wrong poses, 70% of
+#: the wrong poses are flagged; ``fitness`` under 0.5: 29%, 69%; each half of the runs
+#: alike).
+#: docs/results.md has the table.
+#:
+#: A result whose fit (``result.fit``) is under this is flagged. Right poses of whole and
+#: partial views fit 0.9-1.0; a model right on a view that leaves part of it out (an
+#: occluder the view does not hold) fits 0.4-0.8, as wrong ones do; so does a right pose
+#: between two scans that share little.
+LOW_FIT = 0.7
+#: A result is flagged too when a distinct pose the search found fits better than it by
+#: this much (a box turned half a turn fits as well as the right pose: no lead, no flag).
+RIVAL_LEAD = 0.05
+
+
+def low_fit(fit: float, rival_fit: float = 0.0) -> bool:
+    """Whether a result of fit ``fit`` whose best distinct rival fits ``rival_fit`` (see
+    :class:`o3d_spectral.SpectralRegistrationResult`) is flagged: ``fit`` under
+    :data:`LOW_FIT`, or ``rival_fit`` over ``fit`` by :data:`RIVAL_LEAD` or more."""
+    return fit < LOW_FIT or rival_fit - fit >= RIVAL_LEAD
 
 
 def registration_warnings(
     *, converged: bool, max_iteration: int, readings: dict[str, CloudReading],
-    confidence: float | None,
+    fit: float | None, rival_fit: float = 0.0,
 ) -> list[str]:
     """The warnings of one registration, each logged once.
 
@@ -44,8 +66,10 @@ def registration_warnings(
         The criteria's iteration budget.
     readings : dict of str to CloudReading
         How each cloud (``"source"``, ``"target"``) was read.
-    confidence : float or None
-        The global search's confidence; None for the local call.
+    fit : float or None
+        The returned pose's fit (:mod:`o3d_spectral.verification`); None: not measured.
+    rival_fit : float
+        The best fit of a distinct pose the search found (0 when none).
     """
     found = []
     if not converged:
@@ -68,9 +92,13 @@ def registration_warnings(
         if reading.flatness >= FLAT:
             found.append(f"{name}: its normals are nearly all alike (a plane?): the "
                          "rotation about them is not constrained by its EGI")
-    if confidence is not None and confidence < LOW_CONFIDENCE:
-        found.append(f"low confidence {confidence:.3g} (< {LOW_CONFIDENCE}): another, "
-                     "distinct pose scored almost as well")
+    if fit is not None and low_fit(fit, rival_fit):
+        found.append(
+            f"low fit {fit:.2f} (< {LOW_FIT}): only {fit:.0%} of the source points the "
+            "target could show lie within a voxel of it: the pose may be wrong (result.fit; "
+            "try another voxel size)" if fit < LOW_FIT else
+            f"low fit {fit:.2f} against {rival_fit:.2f} for a distinct pose the search "
+            "found: the pose may be wrong (result.fit, result.rival_fit)")
     for text in found:
         logger.warning(text)
     return found

@@ -257,6 +257,7 @@ def _confirmed(
     pose = confirmed.transformation
     result.hypotheses = [(pose @ run.init, confirmed.fit)]
     result.confidence = confirmed.fit - confirmed.runner_up
+    result.rival_fit = confirmed.runner_up
     return Climb(run.moving.centroid, converged=True), pose, result
 
 

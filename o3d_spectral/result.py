@@ -46,7 +46,20 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         transformation is the first, refined.
     confidence : float
         Global call only: the best score minus that of the best hypothesis ending in a
-        distinct rotation (over 10 degrees away); 0 for the local call.
+        distinct rotation (over 10 degrees away); 0 for the local call. A figure of the
+        search, not a failure signal (``fit`` is one).
+    fit : float
+        How well the returned pose fits, in [0, 1]: the share of the source's points (one
+        per voxel) that the target's sensor would see there (all of them when the target
+        is not a single view) lying within one voxel of the target after a short
+        point-to-plane polish (:func:`o3d_spectral.confirmation.fit`). Unlike
+        ``fitness`` it does not count the back of a model, which a view cannot hold, as
+        missed (:mod:`o3d_spectral.verification`). The low-fit warning
+        (:func:`o3d_spectral.diagnostics.low_fit`) is based on it and on ``rival_fit``;
+        docs/results.md gives how often it is right on the suites and real scans.
+    rival_fit : float
+        Global call only: the best ``fit`` of a hypothesis that ends over 10 degrees from
+        the returned pose (0 when there is none, and for the local call).
     source_reading, target_reading : CloudReading
         How each cloud was read: where its normals came from (given, re-oriented,
         estimated), the rule that oriented them, and the direction towards its sensor
@@ -78,6 +91,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.translation_peak = 0.0
         self.hypotheses: list[tuple[NDArray[np.float64], float]] = []
         self.confidence = 0.0
+        self.fit = 0.0
+        self.rival_fit = 0.0
         self.source_reading = CloudReading()
         self.target_reading = CloudReading()
         self.target_viewpoint: NDArray[np.float64] | None = None

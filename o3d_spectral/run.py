@@ -3,7 +3,7 @@
 :func:`start` checks the arguments, centres the clouds on the target and prepares both
 (:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.stepper.MovingCloud`);
 :func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), measures it as Open3D
-does and fills the result.
+does and by its fit (:mod:`o3d_spectral.verification`), and fills the result.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from .prepared import PreparedSource
 from .refinement import near_pose, refine, representatives
 from .result import SpectralRegistrationResult
 from .stepper import MovingCloud, SpectralStepper
+from .verification import verify
 
 __all__ = ["Run", "check_settings", "start", "finish", "with_normals", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -107,7 +108,8 @@ def finish(
     transformation: NDArray[np.float64], refinement: RefinementOption | None,
     max_correspondence_distance: float | None,
 ) -> SpectralRegistrationResult:
-    """Polish ``transformation`` (4, 4), measure it, and fill ``result``."""
+    """Polish ``transformation`` (4, 4), measure it (``fitness``, ``fit``), and fill
+    ``result``, with the warnings of the call."""
     result.history, result.converged = best.history, best.converged
     result.num_iterations = len(best.history)
     result.source_reading = run.moving.reading.turned(run.init[:3, :3].T)  # source frame
@@ -116,11 +118,6 @@ def finish(
         result.target_viewpoint = run.stepper.viewpoint.copy()
         if run.offset is not None:
             result.target_viewpoint += run.offset
-    result.warnings = registration_warnings(
-        converged=best.converged, max_iteration=run.criteria.max_iteration,
-        readings={"source": result.source_reading, "target": result.target_reading},
-        confidence=result.confidence if result.hypotheses else None,
-    )
     voxel_size = run.stepper.voxel_size
     # a dense cloud is polished and scored at the cost of its voxels (2M points: seconds,
     # not a minute); the indices map back to the caller's points
@@ -136,6 +133,13 @@ def finish(
     distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
     near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
+    result.fit, rival_fit = _verified(run, target, transformation, result.hypotheses)
+    result.rival_fit = max(result.rival_fit, rival_fit)  # the confirmation's rivals too
+    result.warnings = registration_warnings(
+        converged=best.converged, max_iteration=run.criteria.max_iteration,
+        readings={"source": result.source_reading, "target": result.target_reading},
+        fit=result.fit, rival_fit=result.rival_fit,
+    )
     if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
         evaluation = o3d.pipelines.registration.evaluate_registration(
             source, near, distance, transformation
@@ -153,6 +157,17 @@ def finish(
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
+
+
+def _verified(
+    run: Run, target: o3d.geometry.PointCloud, transformation: NDArray[np.float64],
+    hypotheses: list[tuple[NDArray[np.float64], float]],
+) -> tuple[float, float]:
+    """:func:`o3d_spectral.verification.verify` of the returned ``transformation`` (4, 4,
+    source to target) against the other ``hypotheses`` (the result's, same frame)."""
+    to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
+    return verify(run.stepper, run.moving, with_normals(target, run.stepper),
+                  transformation @ to_moving, [M @ to_moving for M, _ in hypotheses])
 
 
 def subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:

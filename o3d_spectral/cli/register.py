@@ -35,7 +35,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("source", type=Path, help="source cloud (any file Open3D reads)")
     parser.add_argument("target", type=Path, help="target cloud (any file Open3D reads)")
-    parser.add_argument("--voxel-size", type=float, required=True, help="voxel edge, metres")
+    parser.add_argument(
+        "--voxel-size", type=_voxel_size, required=True, metavar="METRES|auto",
+        help="voxel edge, metres; 'auto': chosen from the clouds' point spacing and extent "
+        "(o3d_spectral.suggest_voxel_size; logged, and in the --json output)",
+    )
     parser.add_argument(
         "--init", type=Path, metavar="FILE",
         help="text file with a 4x4 initial transformation (then a local registration)",
@@ -69,6 +73,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "refusing the file",
     )
     parser.set_defaults(func=run, status=True)
+
+
+def _voxel_size(text: str) -> float | str:
+    """``--voxel-size``: "auto", or a number (checked as a voxel size before any file is
+    read: a NaN or a negative number is refused naming the option)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a number of metres or 'auto', got {text!r}") from None
 
 
 @contextlib.contextmanager
@@ -212,11 +227,14 @@ def _read_logged(path: Path, drop_nan: bool):
     return cloud
 
 
-def _summary(result) -> dict:
-    """The result as JSON values (``--json``)."""
+def _summary(result, voxel_size: float) -> dict:
+    """The result and the voxel size used (metres) as JSON values (``--json``)."""
     return {
         "transformation": result.transformation.tolist(),
+        "voxel_size": voxel_size,
         "fitness": result.fitness,
+        "fit": result.fit,
+        "rival_fit": result.rival_fit,
         "inlier_rmse": result.inlier_rmse,
         "max_correspondence_distance": result.max_correspondence_distance,
         "converged": result.converged,
@@ -238,32 +256,38 @@ def run(args: argparse.Namespace) -> int:
     from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import results
 
-    check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
+    auto = args.voxel_size == "auto"
+    if not auto:
+        check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
     if args.save:
         _check_save(args.save)
     init = _read_init(args.init) if args.init else None
     source, target = (_read_logged(path, args.drop_nan) for path in (args.source, args.target))
+    voxel_size = o3d_spectral.suggest_voxel_size(source, target) if auto else args.voxel_size
+    if auto:
+        log.info("--voxel-size auto: %.4g m (from the clouds' point spacing and extent)",
+                 voxel_size)
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
     criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
     cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
                                      target_viewpoint=_viewpoint(args.target_viewpoint),
                                      source_camera_location=args.source_camera_location)
     log.info("registering %s onto %s at %g m voxels, bandwidth %d: %s", args.source.name,
-             args.target.name, args.voxel_size, args.bandwidth,
+             args.target.name, voxel_size, args.bandwidth,
              "the law from --init" if init is not None else "global search over SO(3)")
     if init is not None:
         result = o3d_spectral.registration_spectral(
-            source, target, args.voxel_size, init, option, criteria, cloud=cloud
+            source, target, voxel_size, init, option, criteria, cloud=cloud
         )
     else:
         result = o3d_spectral.registration_spectral_global(
-            source, target, args.voxel_size, option, criteria, cloud=cloud
+            source, target, voxel_size, option, criteria, cloud=cloud
         )
     if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
         raise FloatingPointError("the registration produced a non-finite transformation")
     log.info("registered in %.2f s: fitness %.3f, inlier rmse %.4f m, %d iterations",
              result.run_time, result.fitness, result.inlier_rmse, result.num_iterations)
-    summary = _summary(result)
+    summary = _summary(result, voxel_size)
     if args.save:
         moved = o3d.geometry.PointCloud(source).transform(result.transformation)
         if not o3d.io.write_point_cloud(str(args.save), moved):
@@ -276,8 +300,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         np.savetxt(out, result.transformation, fmt="%.9f")
         print(
-            f"fitness {result.fitness:.4f}  inlier_rmse {result.inlier_rmse:.6f} m  "
+            f"fitness {result.fitness:.4f}  fit {result.fit:.4f}  "
+            f"inlier_rmse {result.inlier_rmse:.6f} m  "
             f"(at {result.max_correspondence_distance} m)  converged {result.converged}  "
-            f"iterations {result.num_iterations}  time {result.run_time:.3f} s", file=out,
+            f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
+            + (f"  voxel_size {voxel_size:.4g} m (auto)" if auto else ""), file=out,
         )
     return 0

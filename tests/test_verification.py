@@ -1,0 +1,111 @@
+"""The failure signal: the fit of the returned pose and of its distinct rivals
+(o3d_spectral.verification) and the low-fit warning (o3d_spectral.diagnostics)."""
+
+import logging
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3d_spectral
+from o3d_spectral import diagnostics, verification
+from o3d_spectral.harness.errors import rotation_error
+from o3d_spectral.harness.metrics import instance_metrics
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
+from tests.conftest import sample_model
+
+VOXEL = 0.008
+
+
+def turned(cloud, angle_deg, axis, shift):
+    T = np.eye(4)
+    T[:3, :3] = so3.exp(np.deg2rad(angle_deg) * np.asarray(axis) / np.linalg.norm(axis))
+    T[:3, 3] = shift
+    return o3d.geometry.PointCloud(cloud).transform(T), T
+
+
+@pytest.fixture(scope="module")
+def drill():
+    """A power drill model (no symmetry) and a copy turned 150 degrees and moved."""
+    source = sample_model("power_drill", 6000)
+    target, T = turned(source, 150.0, (0.6, -0.48, 0.64), (0.05, 0.1, -0.02))
+    return source, target, T
+
+
+def about(T, angle_deg, axis):
+    """``T`` turned further by ``angle_deg`` about ``axis`` (through the origin)."""
+    out = T.copy()
+    out[:3, :3] = T[:3, :3] @ so3.exp(np.deg2rad(angle_deg) * np.asarray(axis, dtype=float)
+                                      / np.linalg.norm(axis))
+    return out
+
+
+def test_the_truth_fits_whole_a_wrong_pose_does_not(drill):
+    source, target, T = drill
+    stepper = o3d_spectral.SpectralStepper(target, VOXEL)
+    moving = stepper.moving(source)
+    fit, rival = verification.verify(stepper, moving, target, T)
+    assert fit > 0.95 and rival == 0.0
+    flipped = about(T, 180.0, (1.0, 0.0, 0.0))  # upside down
+    wrong, _ = verification.verify(stepper, moving, target, flipped)
+    assert wrong < diagnostics.LOW_FIT
+    # the flipped pose is a distinct rival of the truth; a start 4 degrees off is not
+    _, rival = verification.verify(stepper, moving, target, T, [flipped])
+    assert rival == pytest.approx(wrong)
+    _, rival = verification.verify(stepper, moving, target, T, [about(T, 4.0, (1, 0, 0))])
+    assert rival == 0.0
+
+
+def test_a_right_global_result_fits_and_is_not_flagged(drill):
+    source, target, T = drill
+    result = o3d_spectral.registration_spectral_global(source, target, VOXEL)
+    assert rotation_error(result.transformation, T) < 2.0
+    assert result.fit > 0.95 and result.rival_fit < result.fit - 0.2
+    assert not any(w.startswith("low fit") for w in result.warnings)
+
+
+def test_a_wrong_local_result_is_flagged(drill, caplog):
+    """The local law from the identity, 150 degrees away, ends wrong: warned, by its fit."""
+    source, target, T = drill
+    with caplog.at_level(logging.WARNING, logger="o3d_spectral"):
+        result = o3d_spectral.registration_spectral(source, target, VOXEL)
+    assert rotation_error(result.transformation, T) > 10.0
+    assert result.fit < diagnostics.LOW_FIT and result.rival_fit == 0.0
+    flagged = [w for w in result.warnings if w.startswith("low fit")]
+    assert len(flagged) == 1
+    assert flagged[0] in [r.getMessage() for r in caplog.records]
+
+
+def test_a_model_right_on_a_single_view_fits_though_its_fitness_is_low():
+    """Open3D's fitness counts the model's back, which the view cannot hold, as missed;
+    the fit counts what the view's sensor would see."""
+    instance = make_instance("partial", "power_drill", rng=instance_rng(0, 5))
+    result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
+    assert instance_metrics(result.transformation, instance)["success"]
+    assert result.fitness < 0.7
+    assert result.fit >= diagnostics.LOW_FIT
+    assert not any(w.startswith("low fit") for w in result.warnings)
+
+
+@pytest.mark.parametrize(("fit", "rival", "flagged"), [
+    (0.99, 0.0, False), (0.99, 0.99, False), (0.8, 0.83, False),  # a rival as good: a box
+    (0.5, 0.0, True), (0.5, 0.1, True), (0.69, 0.0, True),  # fits little
+    (0.8, 0.9, True), (0.9, 0.96, True),  # a distinct pose fits clearly better
+])
+def test_the_warning_follows_the_fit_and_the_rival(fit, rival, flagged):
+    assert diagnostics.low_fit(fit, rival) == flagged
+    reading = o3d_spectral.io.cloud.CloudReading()
+    found = diagnostics.registration_warnings(
+        converged=True, max_iteration=100, readings={"source": reading}, fit=fit,
+        rival_fit=rival)
+    assert [w.startswith("low fit") for w in found] == ([True] if flagged else [])
+
+
+def test_the_local_call_has_no_rival():
+    """The local call climbs one pose: nothing to compare it with."""
+    source = sample_model("mustard_bottle", 4000)
+    target, _ = turned(source, 10.0, (0.0, 0.0, 1.0), (0.01, 0.0, 0.0))
+    result = o3d_spectral.registration_spectral(source, target, VOXEL)
+    assert result.rival_fit == 0.0 and result.fit > 0.95
