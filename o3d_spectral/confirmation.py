@@ -83,7 +83,7 @@ class Confirmation:
 
 def fit(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
-    pose: NDArray[np.float64],
+    pose: NDArray[np.float64], *, polish: bool = True,
 ) -> tuple[NDArray[np.float64], float]:
     """Polish ``pose`` (4, 4) by the short ICP and measure its fit.
 
@@ -97,6 +97,8 @@ def fit(
         The fixed cloud with normals, metres.
     pose : ndarray, shape (4, 4)
         Start of the polish.
+    polish : bool
+        False measures the fit at ``pose`` itself (a pose polished already).
 
     Returns
     -------
@@ -112,7 +114,7 @@ def fit(
     if len(kept) == 0:
         return pose, 0.0
     source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    for distance in ICP_DISTANCES:
+    for distance in ICP_DISTANCES if polish else ():
         pose = point_to_plane_icp(source, near, distance * voxel, pose)
     share = o3d.pipelines.registration.evaluate_registration(source, near, voxel, pose).fitness
     return pose, float(share)

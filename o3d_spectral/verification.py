@@ -3,8 +3,9 @@
 Open3D's ``fitness`` divides the source points near the target by all of them: a model
 registered right onto a single view scores 0.3-0.6 (its back is not in the view), as
 low as many wrong poses. :func:`verify` measures what the view can hold instead, as the
-early confirmation does (:func:`o3d_spectral.confirmation.fit`): the pose is polished by
-a short point-to-plane ICP, and its *fit* is the share of the source's one-per-voxel
+early confirmation does (:func:`o3d_spectral.confirmation.fit`), at the returned pose (the
+polish's: no further ICP, so the signal costs a few distance queries, not a search): its
+*fit* is the share of the source's one-per-voxel
 points that the target's sensor would see there (facing it,
 :meth:`o3d_spectral.SpectralStepper.visible`; all of them against a whole cloud) lying
 within one voxel of the target; between two views (two scans, matched whole), of those
@@ -15,8 +16,9 @@ hidden behind what the view saw in front of them are not set apart: in a scene t
 would set apart a wrong pose sunk into the table as much as an occluded right one.
 
 The hypotheses of the global search that end over
-:data:`o3d_spectral.search.DISTINCT_ANGLE` away are measured the same way, and the best
-of them is the *rival fit*. Both are reported in the result (``fit``, ``rival_fit``), and
+:data:`o3d_spectral.search.DISTINCT_ANGLE` away are measured the same way where they
+ended (the climbs' best iterates; the confirmation's rivals after its short ICP), and the
+best of them is the *rival fit*. Both are reported in the result (``fit``, ``rival_fit``), and
 the low-fit warning (:func:`o3d_spectral.diagnostics.low_fit`) is based on them.
 """
 
@@ -38,7 +40,7 @@ from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["verify", "RIVALS"]
 
-#: Hypotheses measured at most, besides the returned pose (each a short ICP).
+#: Hypotheses measured at most, besides the returned pose.
 RIVALS = 4
 
 
@@ -64,14 +66,13 @@ def verify(
     Returns
     -------
     (float, float)
-        The fit of ``pose`` after the short polish, and the best fit of a hypothesis
-        whose polished pose turns the cloud over ``DISTINCT_ANGLE`` from ``pose``'s (0
-        when there is none), each in [0, 1].
+        The fit of ``pose``, and the best fit of a hypothesis that turns the cloud over
+        ``DISTINCT_ANGLE`` from ``pose`` (0 when there is none), each in [0, 1].
     """
-    polished, share = fit(stepper, moving, fixed, pose)
+    polished, share = fit(stepper, moving, fixed, pose, polish=False)
     rival = 0.0
     for other in list(others)[:RIVALS]:
-        moved, other_share = fit(stepper, moving, fixed, other)
+        moved, other_share = fit(stepper, moving, fixed, other, polish=False)
         if so3.rotation_angle(moved[:3, :3].T @ polished[:3, :3]) > DISTINCT_ANGLE:
             rival = max(rival, _facing_share(stepper, moving, fixed, moved, other_share))
     return _facing_share(stepper, moving, fixed, polished, share), rival
