@@ -69,13 +69,13 @@ def verify(
         The fit of ``pose``, and the best fit of a hypothesis that turns the cloud over
         ``DISTINCT_ANGLE`` from ``pose`` (0 when there is none), each in [0, 1].
     """
-    polished, share = fit(stepper, moving, fixed, pose, polish=False)
+    _, share = fit(stepper, moving, fixed, pose, polish=False)
     rival = 0.0
-    for other in list(others)[:RIVALS]:
-        moved, other_share = fit(stepper, moving, fixed, other, polish=False)
-        if so3.rotation_angle(moved[:3, :3].T @ polished[:3, :3]) > DISTINCT_ANGLE:
-            rival = max(rival, _facing_share(stepper, moving, fixed, moved, other_share))
-    return _facing_share(stepper, moving, fixed, polished, share), rival
+    for other in list(others)[:RIVALS]:  # measured where they are: distinct ones only
+        if so3.rotation_angle(other[:3, :3].T @ pose[:3, :3]) > DISTINCT_ANGLE:
+            _, other_share = fit(stepper, moving, fixed, other, polish=False)
+            rival = max(rival, _facing_share(stepper, moving, fixed, other, other_share))
+    return _facing_share(stepper, moving, fixed, pose, share), rival
 
 
 def _facing_share(
