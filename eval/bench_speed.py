@@ -70,7 +70,7 @@ import o3d_spectral  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import rotation_error, translation_error  # noqa: E402
 from o3d_spectral.harness.methods import get_method  # noqa: E402
-from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
+from o3d_spectral.harness.metrics import instance_score  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
 from o3d_spectral.synthetic.sampling import rigid, sample_rotation  # noqa: E402
@@ -123,17 +123,6 @@ ALL_GROUPS = (*CONDITIONS, "crop_in_scene", "wide", *real.GROUPS)
 
 #: The groups made from the suites' folder (``--suites``).
 SUITE_GROUPS = (*CONDITIONS, "crop_in_scene")
-
-
-def instance_score(instance) -> object:
-    """``(T) -> (rotation_error_deg, translation_error_m, success)`` of a synthetic
-    instance, symmetry-aware (``harness.metrics.instance_metrics``)."""
-
-    def score(T):
-        m = instance_metrics(T, instance)
-        return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
-
-    return score
 
 
 def group_tasks(group: str, suites: Path | None, rotations: int, limit: int) -> list[Task]:
@@ -191,13 +180,8 @@ def real_tasks(group: str, rotations: int, limit: int) -> Iterator[Task]:
     for count, (turned, _, seed, r) in enumerate(real.rotated_cases([group], rotations)):
         if count >= limit:
             return
-
-        def score(T, case=turned):
-            rotation, translation = real.case_errors(T, case)
-            return rotation, translation, real.is_success(rotation, translation)
-
         yield Task(group, f"{turned.name}_r{r}", turned.source, turned.target,
-                   real.VOXEL_SIZES[group], seed, score)
+                   real.VOXEL_SIZES[group], seed, real.case_score(turned))
 
 
 def run_task(task: Task) -> list[dict]:

@@ -21,7 +21,7 @@ FITNESS_THRESHOLDS = (0.3, 0.5, 0.7)
 
 def rates(rows: list[dict], flagged) -> tuple[int, int, str, str]:
     """(wrong poses, flagged poses, precision, recall) of the signal ``flagged(row)``."""
-    wrong = [r["success"] == "False" for r in rows]
+    wrong = [str(r["success"]) == "False" for r in rows]  # a CSV's text or a bool
     flags = [flagged(r) for r in rows]
     hits = sum(w and f for w, f in zip(wrong, flags, strict=True))
     precision = f"{hits / sum(flags):.0%}" if sum(flags) else "-"

@@ -39,6 +39,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from failure_signal import rates  # the same precision and recall as its table
 
 from o3d_spectral.diagnostics import low_fit
 
@@ -53,7 +54,7 @@ def tasks(groups: list[str], suites: Path | None, start: int, limit: int, rotati
     """``(group, name, source, target, hand voxel, score)`` of every instance; ``score``
     maps an estimate (4, 4) to ``(rotation error deg, translation error m, success)``."""
     from o3d_spectral.harness import real
-    from o3d_spectral.harness.metrics import instance_metrics
+    from o3d_spectral.harness.metrics import instance_score
     from o3d_spectral.synthetic.suite import load_suite
 
     for group in groups:
@@ -61,22 +62,12 @@ def tasks(groups: list[str], suites: Path | None, start: int, limit: int, rotati
             suite = load_suite(suites / group)
             for index in range(start, min(start + limit, len(suite))):
                 instance = suite[index]
-
-                def score(T, instance=instance):
-                    m = instance_metrics(T, instance)
-                    return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
-
                 yield (group, f"{group}_{index:03d}", instance.source, instance.target,
-                       SUITE_VOXEL, score)
+                       SUITE_VOXEL, instance_score(instance))
         else:
             for case, _, _, r in real.rotated_cases([group], rotations):
-
-                def score(T, case=case):
-                    rotation, translation = real.case_errors(T, case)
-                    return rotation, translation, real.is_success(rotation, translation)
-
                 yield (group, f"{case.name}_r{r}", case.source, case.target,
-                       real.VOXEL_SIZES[group], score)
+                       real.VOXEL_SIZES[group], real.case_score(case))
 
 
 def register(source, target, voxel: float, score) -> dict:
@@ -156,15 +147,6 @@ def advice_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _rates(rows: list[dict], flagged) -> tuple[int, int, str, str]:
-    wrong = [not _true(r["success"]) for r in rows]
-    flags = [flagged(r) for r in rows]
-    hits = sum(w and f for w, f in zip(wrong, flags, strict=True))
-    precision = f"{100 * hits / sum(flags):.0f}%" if sum(flags) else "-"
-    recall = f"{100 * hits / sum(wrong):.0f}%" if sum(wrong) else "-"
-    return sum(wrong), sum(flags), precision, recall
-
-
 def signal_table(rows: list[dict], choice: str) -> str:
     # the warning as diagnostics.low_fit flags it (the call's own rule, which run()
     # checks against the logged warning): rows of earlier constants are judged by these
@@ -181,7 +163,7 @@ def signal_table(rows: list[dict], choice: str) -> str:
         mine = [r for r in picked if group in ("all", r["group"])]
         cells = []
         for name in names:
-            wrong, flags, precision, recall = _rates(mine, signals[name])
+            wrong, flags, precision, recall = rates(mine, signals[name])
             cells.append(f"{flags}, {precision}, {recall}")
         lines.append(f"| {group} | {len(mine)} | {wrong} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -8,6 +8,7 @@ Rotation errors are in degrees, translation errors in metres.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 
@@ -31,6 +32,7 @@ __all__ = [
     "convergence_curves",
     "indistinguishable",
     "instance_metrics",
+    "instance_score",
     "observation_fit",
     "registration_fit",
 ]
@@ -102,6 +104,17 @@ def instance_metrics(
         "squared_translation_error_m2": translation_sym**2,
         "squared_rotation_error_rad2": np.deg2rad(rotation_sym) ** 2,
     }
+
+
+def instance_score(instance: Instance) -> Callable[[np.ndarray], tuple[float, float, bool]]:
+    """``(T) -> (rotation error deg, translation error m, success)`` of an estimate ``T``
+    (4, 4) of ``instance``, symmetry-aware (:func:`instance_metrics`)."""
+
+    def score(transformation: np.ndarray) -> tuple[float, float, bool]:
+        m = instance_metrics(transformation, instance)
+        return m["rotation_error_sym_deg"], m["translation_error_sym_m"], m["success"]
+
+    return score
 
 
 def convergence_curves(trajectory: np.ndarray, instance: Instance) -> tuple[list, list]:

@@ -24,7 +24,7 @@ another.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import cache
 from pathlib import Path
 from typing import NamedTuple
@@ -54,6 +54,7 @@ __all__ = [
     "rotation_seed",
     "case_errors",
     "is_success",
+    "case_score",
     "orient_outward",
     "ycbv_symmetry",
     "write_dragon_pairs",
@@ -381,3 +382,14 @@ def ycbv_symmetry(class_name: str) -> Symmetry:
 def is_success(rotation_deg: float, translation_m: float) -> bool:
     """Both errors under :data:`MAX_ROTATION_DEG` and :data:`MAX_TRANSLATION_M`."""
     return bool(rotation_deg < MAX_ROTATION_DEG and translation_m < MAX_TRANSLATION_M)
+
+
+def case_score(case: RealCase) -> Callable[[np.ndarray], tuple[float, float, bool]]:
+    """``(T) -> (rotation error deg, translation error m, success)`` of an estimate ``T``
+    (4, 4) of ``case``: :func:`case_errors` and :func:`is_success`."""
+
+    def score(transformation: np.ndarray) -> tuple[float, float, bool]:
+        rotation, translation = case_errors(transformation, case)
+        return rotation, translation, is_success(rotation, translation)
+
+    return score
