@@ -1,20 +1,23 @@
-"""Benchmark: does the coarse ranking of two scans' candidates keep the right rotation?
+"""Benchmark: does the coarse ranking of the candidates keep the right rotation?
 
-Between two scans, the global call places its candidate rotations (the EGI's peaks, the
-shells' peaks and the sweep's best) on a grid of twice the voxel first and only the
+Outside a scene (two scans, or a model against a view of it), the global call places its
+candidate rotations (the EGI's peaks; between two scans also the shells' peaks and the
+sweep's best) on a grid of twice the voxel first and only the
 ``GlobalSearchOption.coarse_placements`` best at full resolution. This script measures,
-for every pair of the dragon groups (or ``--groups``), the rank of the first candidate
-within ``--within`` degrees of the truth when the candidates are ranked by their
+for every case of ``--groups`` (the dragon pairs by default; the suites' ``full``,
+``partial`` and ``occluded`` views with ``--suites``; ``ycbv_crop``), the rank of the first
+candidate within ``--within`` degrees of the truth when the candidates are ranked by their
 phase-correlation peak on grids of 4, 2 and 1 voxels, and prints the recall at a few
-ranks per level (pairs with no such candidate at all are counted apart: no ranking can
-keep them).
+ranks per level and group kind (cases with no such candidate at all are counted apart:
+no ranking can keep them).
 
 Then, with ``--counts``, it runs the whole global call with each value of
-``coarse_placements`` on the same pairs and on synthetic pairs of views of the twelve
+``coarse_placements`` on the same cases and on synthetic pairs of views of the twelve
 bundled models (two depth views 30-75 degrees apart, ``--view-pairs`` per model), and
-prints success and total time per value.
+prints success per group and total time per value.
 
-Usage: python eval/bench_pyramid.py [--groups dragon_24 ...] [--counts 32 16 8]
+Usage: python eval/bench_pyramid.py [--groups dragon_24 full ...] [--suites DIR]
+       [--limit 48] [--counts 32 16 8]
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 
 import argparse
 import time
+from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
@@ -47,6 +52,8 @@ from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 from o3d_spectral.synthetic.symmetry import model_symmetry
 
 DRAGONS = ("dragon_24", "dragon_48", "dragon_72", "dragon_96", "dragon_120")
+#: Groups of a model against a view of it (the suites' views, RGB-D crops).
+VIEWS = ("full", "partial", "occluded", "ycbv_crop")
 LEVELS = (4.0, 2.0, 1.0)
 RANKS = (1, 2, 4, 8, 16, 32)
 VOXEL = 0.008
@@ -58,22 +65,29 @@ def first_good_rank(task: speed.Task, within: float) -> dict[float, int] | None:
     run = runs.start(task.source, task.target, task.voxel, np.eye(4), None, None, None)
     stepper, moving = run.stepper, run.moving
     search = o3d_spectral.GlobalSearchOption(workers=1)
-    candidates = (egi_rotations(stepper, moving, search)
-                  + shell_rotations(stepper, moving, search.shell_hypotheses)
-                  + swept_rotations(stepper, moving, search.sweep_rotations))
+    candidates = egi_rotations(stepper, moving, search)
+    factor = 1.0
+    if stepper.two_views(moving):
+        candidates += (shell_rotations(stepper, moving, search.shell_hypotheses)
+                       + swept_rotations(stepper, moving, search.sweep_rotations))
+        factor = span_factor(stepper, moving, PLACEMENT_SPAN)
     rotations = [R for R, _ in candidates]
     errors = np.array([task.score(so3.about_pivot(R, np.zeros(3), moving.centroid))[0]
                        for R in rotations])
     good = errors <= within
     if not good.any():
         return None
-    factor = span_factor(stepper, moving, PLACEMENT_SPAN)
     ranks = {}
     for level in LEVELS:
         order = np.argsort(-placed_peaks(stepper, moving, rotations, factor * level),
                            kind="stable")
         ranks[level] = int(np.flatnonzero(good[order])[0]) + 1
     return ranks
+
+
+def kind(group: str) -> str:
+    """``"dragon pairs"`` or ``"model and view"``."""
+    return "dragon pairs" if group in DRAGONS else "model and view"
 
 
 def view_pairs(per_model: int, seed: int = 11) -> list[tuple]:
@@ -112,57 +126,67 @@ def _view_score(source_pose, target_pose, name, centre):
     return score
 
 
-def recall_table(groups: list[str], rotations: int, within: float) -> str:
-    ranks = [first_good_rank(task, within) for group in groups
-             for task in speed.group_tasks(group, None, rotations, 1000)]
-    found = [r for r in ranks if r is not None]
-    lines = [f"pairs: {len(ranks)}; with a candidate within {within:g} deg: {len(found)}",
-             "", "| grid (voxels) | " + " | ".join(f"recall@{k}" for k in RANKS)
-             + " | worst rank |",
-             "| --- |" + " --- |" * (len(RANKS) + 1)]
-    for level in LEVELS:
-        worst = max(r[level] for r in found)
-        cells = " | ".join(f"{sum(r[level] <= k for r in found)}/{len(found)}" for k in RANKS)
-        lines.append(f"| {level:g} | {cells} | {worst} |")
+def tasks(groups: list[str], suites: Path | None, rotations: int, limit: int) -> list:
+    """The cases of ``groups`` (:func:`bench_speed.group_tasks`)."""
+    return [t for group in groups for t in speed.group_tasks(group, suites, rotations, limit)]
+
+
+def recall_table(cases: list, within: float) -> str:
+    """The recall per grid level of each kind of case (:func:`kind`), Markdown."""
+    lines = ["| cases | grid (voxels) | " + " | ".join(f"recall@{k}" for k in RANKS)
+             + " | worst rank |", "| --- | --- |" + " --- |" * (len(RANKS) + 1)]
+    for name in dict.fromkeys(kind(t.group) for t in cases):
+        ranks = [first_good_rank(t, within) for t in cases if kind(t.group) == name]
+        found = [r for r in ranks if r is not None]
+        label = f"{name} ({len(found)} of {len(ranks)} with a candidate within {within:g} deg)"
+        for level in LEVELS:
+            worst = max((r[level] for r in found), default=0)
+            cells = " | ".join(f"{sum(r[level] <= k for r in found)}/{len(found)}"
+                               for k in RANKS)
+            lines.append(f"| {label} | {level:g} | {cells} | {worst} |")
     return "\n".join(lines)
 
 
-def counts_table(groups: list[str], rotations: int, counts: list[int], per_model: int) -> str:
-    cases = [(t.name, t.source, t.target, t.score, t.voxel) for group in groups
-             for t in speed.group_tasks(group, None, rotations, 1000)]
-    cases += [(*pair, VOXEL) for pair in view_pairs(per_model)]
-    lines = ["| coarse_placements | dragon pairs | view pairs | total time (s) |",
-             "| --- | --- | --- | --- |"]
+def counts_table(cases: list, counts: list[int], per_model: int) -> str:
+    """Success per group (and on synthetic view pairs) and total time of the whole call
+    with each ``coarse_placements``, Markdown."""
+    runs_ = [(t.group, t.source, t.target, t.score, t.voxel) for t in cases]
+    runs_ += [("view pairs", *pair[1:], VOXEL) for pair in view_pairs(per_model)]
+    names = list(dict.fromkeys(group for group, *_ in runs_))
+    sizes = Counter(group for group, *_ in runs_)
+    lines = ["| coarse_placements | " + " | ".join(names) + " | total time (s) |",
+             "| --- |" + " --- |" * (len(names) + 1)]
     for count in counts:
         search = o3d_spectral.GlobalSearchOption(workers=1, coarse_placements=count)
-        good = {"dragon": 0, "view": 0}
-        total = 0.0
-        for name, source, target, score, voxel in cases:
+        good, total = Counter(), 0.0
+        for group, source, target, score, voxel in runs_:
             start = time.perf_counter()
             result = o3d_spectral.registration_spectral_global(source, target, voxel,
                                                                search=search)
             total += time.perf_counter() - start
-            good["dragon" if name.startswith("dragon") else "view"] += bool(
-                score(np.asarray(result.transformation))[2])
-        dragons = sum(name.startswith("dragon") for name, *_ in cases)
-        lines.append(f"| {count} | {good['dragon']}/{dragons} | "
-                     f"{good['view']}/{len(cases) - dragons} | {total:.1f} |")
+            good[group] += bool(score(np.asarray(result.transformation))[2])
+        cells = " | ".join(f"{good[name]}/{sizes[name]}" for name in names)
+        lines.append(f"| {count} | {cells} | {total:.1f} |")
     return "\n".join(lines)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--groups", nargs="+", default=list(DRAGONS), choices=DRAGONS)
+    parser.add_argument("--groups", nargs="+", default=list(DRAGONS),
+                        choices=(*DRAGONS, *VIEWS))
+    parser.add_argument("--suites", type=Path, help="folder of the suites (for their groups)")
+    parser.add_argument("--limit", type=int, default=48, help="cases per group at most")
     parser.add_argument("--rotations", type=int, default=2, help="random rotations per pair")
     parser.add_argument("--within", type=float, default=10.0, help="degrees")
     parser.add_argument("--counts", type=int, nargs="*", default=[],
                         help="coarse_placements values to run the whole call with")
     parser.add_argument("--view-pairs", type=int, default=2, help="view pairs per model")
     args = parser.parse_args()
-    print(recall_table(args.groups, args.rotations, args.within), flush=True)
+    cases = tasks(args.groups, args.suites, args.rotations, args.limit)
+    print(recall_table(cases, args.within), flush=True)
     if args.counts:
         print()
-        print(counts_table(args.groups, args.rotations, args.counts, args.view_pairs))
+        print(counts_table(cases, args.counts, args.view_pairs))
 
 
 if __name__ == "__main__":
