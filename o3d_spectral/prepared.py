@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._checks import check_instance, check_number, check_voxel_span
 from .io.cloud import CloudArrays, PreparedCloud, as_arrays
 from .io.cloud import prepare as prepare_arrays
+from .io.rows import bounds
 from .options import CloudOption, SpectralRegistrationOption
 
 __all__ = ["PreparedSource", "prepare", "prepared_cloud"]
@@ -37,7 +38,8 @@ def prepared_cloud(
     """``cloud`` checked (it must span 4 voxels) and prepared
     (:func:`o3d_spectral.io.cloud.prepare`, whose arguments these are)."""
     arrays = as_arrays(cloud, name)
-    extent = float(np.max(np.ptp(arrays.points, axis=0)))
+    lower, upper = bounds(arrays.points)
+    extent = float(np.max(upper - lower))
     if extent < 4 * voxel_size:
         raise ValueError(
             f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "

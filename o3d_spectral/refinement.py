@@ -14,6 +14,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from .io.cloud import extent
+from .io.rows import bounds
 from .options import RefinementOption
 
 __all__ = [
@@ -53,8 +54,8 @@ def representatives(
     if len(points) <= DENSE_PER_VOXEL * voxels:
         return np.arange(len(points))
     cell = SCORE_CELL * voxel_size
-    keys = np.floor((points - points.min(axis=0)) / cell).astype(np.int64)
-    span = keys.max(axis=0) + 1
+    keys = np.floor((points - bounds(points)[0]) / cell).astype(np.int64)
+    span = bounds(keys)[1] + 1
     if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one int64 per cell
         flat = keys[:, 0] + span[0] * (keys[:, 1] + span[1] * keys[:, 2])
         first = np.unique(flat, return_index=True)[1]

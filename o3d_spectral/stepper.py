@@ -29,6 +29,7 @@ from ._checks import check_instance, check_voxel_size
 from .evaluation import Evaluation
 from .io.cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
 from .io.normals import sensor_position
+from .io.rows import lengths
 from .options import CloudOption, SpectralRegistrationOption
 from .prepared import prepared_cloud
 from .spectra import so3
@@ -272,7 +273,7 @@ class SpectralStepper:
             return moved, None, None
         rays = self.viewpoint - moved
         cosine = np.einsum("ij,ij->i", moving.point_normals @ R.T, rays)
-        cosine /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
+        cosine /= np.maximum(lengths(rays), 1e-12)
         toward = (cosine != 0.0) if moving.reading.two_sided else (cosine > 0.0)
         if toward.sum() < MIN_POINTS:
             return moved, None, None

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from .io.cloud import as_arrays, dense_bounds
+from .io.rows import bounds
 
 __all__ = ["suggest_voxel_size", "spacing", "SPACINGS", "VOXELS_ACROSS", "MAX_VOXELS_ACROSS",
            "NEIGHBOURS", "SAMPLES", "MAX_TREE_POINTS"]
@@ -94,7 +95,7 @@ def spacing(points: NDArray[np.float64]) -> float:
 
 def _bounds(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
     """Sides (metres, shape (3,)) of the box holding ``points`` without isolated ones."""
-    lower, upper = dense_bounds(points, step) if step > 0.0 else (points.min(0), points.max(0))
+    lower, upper = dense_bounds(points, step) if step > 0.0 else bounds(points)
     return upper - lower
 
 

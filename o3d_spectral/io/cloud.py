@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import real_array
 from .normals import faces, orient, view_direction
+from .rows import bounds, every, lengths
 from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
 __all__ = [
@@ -95,7 +96,7 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
         raise TypeError(f"{name}: expected {CloudLike}, got {type(cloud).__name__}")
     if len(points) == 0:
         raise ValueError(f"{name} is empty")
-    bad = ~np.all(np.isfinite(points), axis=1)
+    bad = ~every(np.isfinite(points))
     if bad.any():
         raise ValueError(
             f"{name} has {int(bad.sum())} points with NaN or infinite coordinates; "
@@ -104,7 +105,7 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
     if normals is not None:
         if normals.shape != points.shape:
             raise ValueError(f"{name}: {len(normals)} normals for {len(points)} points")
-        bad = ~np.all(np.isfinite(normals), axis=1)
+        bad = ~every(np.isfinite(normals))
         if bad.any():
             raise ValueError(f"{name} has {int(bad.sum())} normals with NaN or infinite entries")
     return CloudArrays(points, normals)
@@ -122,7 +123,7 @@ def extent(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     """Centroid (metres, shape (3,)) of ``points`` (N, 3) and the largest distance of a
     point from it (metres): the ball that holds the cloud under any rotation about it."""
     centroid = points.mean(axis=0)
-    return centroid, float(np.max(np.linalg.norm(points - centroid, axis=1)))
+    return centroid, float(np.max(lengths(points - centroid)))
 
 
 def dense_bounds(
@@ -145,7 +146,7 @@ def dense_bounds(
         Metres.
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    lower, upper = p.min(axis=0), p.max(axis=0)
+    lower, upper = bounds(p)
     k = int(share * len(p))
     if k == 0:
         return lower, upper
@@ -163,7 +164,7 @@ def dense_bounds(
 
 
 def _within(points: NDArray[np.float64], bounds: tuple[NDArray, NDArray]) -> NDArray[np.bool_]:
-    return np.all((points >= bounds[0]) & (points <= bounds[1]), axis=1)
+    return every((points >= bounds[0]) & (points <= bounds[1]))
 
 
 def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> CloudArrays:
@@ -283,12 +284,12 @@ def _signs_checked(
     if disagreement <= SIGN_DISAGREEMENT:
         return arrays, None, disagreement, False
     two_sided = away >= THIN_WALLS
-    lengths = np.linalg.norm(arrays.normals, axis=1, keepdims=True)
-    unit = np.divide(arrays.normals, lengths, out=np.zeros_like(arrays.normals),
-                     where=lengths > 1e-12)
+    norms = lengths(arrays.normals)[:, None]
+    unit = np.divide(arrays.normals, norms, out=np.zeros_like(arrays.normals),
+                     where=norms > 1e-12)
     normals, rule = orient(arrays.points, unit, voxel_size, camera_location=camera_location,
                            origin=origin)
-    oriented = CloudArrays(arrays.points, normals * lengths)
+    oriented = CloudArrays(arrays.points, normals * norms)
     return oriented, None if two_sided else rule, disagreement, two_sided
 
 
@@ -379,15 +380,15 @@ def prepare(
         coarse = fine.voxel_down_sample(voxel_size)  # again, averaging the new normals
     points = np.asarray(coarse.points).copy()
     point_normals = np.asarray(coarse.normals)
-    lengths = np.linalg.norm(point_normals, axis=1, keepdims=True)
+    norms = lengths(point_normals)[:, None]
     point_normals = np.divide(
-        point_normals, lengths, out=np.zeros_like(point_normals), where=lengths > 1e-6
+        point_normals, norms, out=np.zeros_like(point_normals), where=norms > 1e-6
     )
     if normals_from == "estimated":
         normals, normal_points = np.asarray(fine.normals), np.asarray(fine.points)
     else:
         normals, normal_points = arrays.normals, arrays.points
-    length = np.linalg.norm(normals, axis=1)
+    length = lengths(normals)
     keep = np.flatnonzero(length > 1e-6)
     if len(keep) < MIN_POINTS:
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")

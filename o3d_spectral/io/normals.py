@@ -19,6 +19,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .rows import bounds, lengths, some
 from .signs import SIGN_DISAGREEMENT, sign_disagreement
 
 __all__ = [
@@ -231,7 +232,8 @@ def orient(
         Metres; ``origin``: where the caller's frame has its origin (zero when omitted).
     """
     origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
-    outside = np.any(points.min(axis=0) > origin) or np.any(points.max(axis=0) < origin)
+    lower, upper = bounds(points)
+    outside = np.any(lower > origin) or np.any(upper < origin)
     if camera_location is not None:
         return _turned_to_face(normals, np.asarray(camera_location) - points), "camera"
     axis = sensor_direction(points, normals, voxel_size)
@@ -271,7 +273,7 @@ def faces(
     """Whether at least ``share`` of the (non-zero) ``normals`` (N, 3) at ``points``
     (metres) face ``place`` (metres, shape (3,)): a view seen from there."""
     n = np.asarray(normals, dtype=np.float64)
-    usable = np.any(n != 0.0, axis=1)
+    usable = some(n != 0.0)
     rays = np.asarray(place, dtype=np.float64) - np.asarray(points, dtype=np.float64)
     return bool(np.mean(np.einsum("ij,ij->i", n, rays)[usable] > 0.0) >= share)
 
@@ -314,7 +316,8 @@ def _consistent(points: NDArray[np.float64], normals: NDArray[np.float64]) -> ND
         return propagated(points)
     except RuntimeError:  # Qhull: "input sites are cocircular or cospherical"
         jitter = np.random.default_rng(0).uniform(-1.0, 1.0, points.shape)
-        return propagated(points + JOGGLE * float(np.max(np.ptp(points, axis=0))) * jitter)
+        lower, upper = bounds(points)
+        return propagated(points + JOGGLE * float(np.max(upper - lower)) * jitter)
 
 
 def view_direction(
@@ -347,7 +350,7 @@ def view_direction(
         Unit direction from the surface towards the (distant) sensor.
     """
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    usable = np.linalg.norm(n, axis=1) > 1e-6
+    usable = lengths(n) > 1e-6
     if not usable.any():
         return None
     mean = n[usable].mean(axis=0)
@@ -380,5 +383,6 @@ def sensor_position(
         return origin
     if view is None:
         return None
-    size = float(np.max(np.ptp(points, axis=0)))
+    lower, upper = bounds(points)
+    size = float(np.max(upper - lower))
     return points.mean(axis=0) + DISTANT_SENSOR * max(size, 1.0) * view

@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..io.rows import lengths
 from .harmonics import grid_angles, project, quadrature_weights, real_sph_harm, sht
 
 __all__ = [
@@ -33,7 +34,7 @@ __all__ = [
 
 def _unit(normals: ArrayLike) -> NDArray[np.float64]:
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    return n / lengths(n)[:, None]
 
 
 def histogram(
@@ -139,7 +140,7 @@ def harmonics_table(normals: ArrayLike, bandwidth: int) -> NDArray[np.float64]:
     no meaning: leave them out of every subset.
     """
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    length = np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+    length = np.maximum(lengths(n), 1e-300)
     theta = np.arccos(np.clip(n[:, 2] / length, -1.0, 1.0))
     phi = np.arctan2(n[:, 1], n[:, 0])
     return real_sph_harm(bandwidth, theta, phi).reshape(len(n), -1)

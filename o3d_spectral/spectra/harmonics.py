@@ -26,6 +26,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..io.rows import lengths
+
 __all__ = [
     "grid_angles",
     "quadrature_weights",
@@ -237,7 +239,7 @@ def project(
     w = np.ones(len(n)) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
     if len(w) != len(n):
         raise ValueError(f"{len(w)} weights for {len(n)} directions")
-    n = np.ascontiguousarray(n / np.linalg.norm(n, axis=1, keepdims=True))
+    n = np.ascontiguousarray(n / lengths(n)[:, None])
     return harmonic_sums(n, np.ascontiguousarray(w), B)
 
 

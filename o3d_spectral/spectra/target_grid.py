@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..io.cloud import extent
+from ..io.rows import bounds
 from .fft import RealFFT3, fft_plan, next_fast_len, padded_forward
 from .grid import Box, Lattice, check_memory, splat
 from .translation import cross_power_peak, peak_heights
@@ -92,7 +93,7 @@ class TargetGrid:
         self.voxel_size = voxel_size
         self.weighting, self.peak_width = weighting, peak_width
         self.window, self.max_memory = window, max_memory
-        lower, upper = points.min(axis=0), points.max(axis=0)
+        lower, upper = bounds(points)
         self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, voxel_size)
         self.box = self.lattice.box_around(lower, upper, margin=2)
         check_memory(self.box.shape, max_memory, "target")
