@@ -284,11 +284,9 @@ class SpectralStepper:
         factor: float = 1.0,
     ) -> tuple[NDArray[np.float64], float, float]:
         """Where the moving cloud, turned by ``rotation`` (3, 3) about its centroid, best
-        matches the fixed one (searched near ``around``, metres, when given; on a grid of
-        ``factor`` voxels when over 1,
-        :meth:`o3d_spectral.spectra.target_grid.TargetGrid.coarsened`):
-        its centroid there (metres), the phase-correlation peak height and ``J_t`` before
-        the shift."""
+        matches the fixed one, searched near ``around`` (metres) when given, on a grid of
+        ``factor`` voxels (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.coarsened`):
+        its centroid there (metres), the peak height and ``J_t`` before the shift."""
         moved, _, _ = self.visible(moving, np.asarray(rotation, dtype=np.float64), np.zeros(3))
         grid = self.grid.coarsened(factor)
         placed = grid.correlate(moved, moving.radius, moving.centroid, around)

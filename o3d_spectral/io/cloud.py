@@ -163,13 +163,10 @@ def dense_bounds(
     return lower, upper
 
 
-def _within(points: NDArray[np.float64], bounds: tuple[NDArray, NDArray]) -> NDArray[np.bool_]:
-    return every((points >= bounds[0]) & (points <= bounds[1]))
-
-
 def _without_isolated(arrays: CloudArrays, voxel_size: float, name: str) -> CloudArrays:
     """``arrays`` without the points outside :func:`dense_bounds` (logged)."""
-    keep = _within(arrays.points, dense_bounds(arrays.points, voxel_size))
+    lower, upper = dense_bounds(arrays.points, voxel_size)
+    keep = every((arrays.points >= lower) & (arrays.points <= upper))
     if keep.all():
         return arrays
     logger.info("%s: %d isolated points (beyond a %g-voxel gap) left out", name,
