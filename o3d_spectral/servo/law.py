@@ -88,7 +88,7 @@ class ServoLaw:
     def __init__(
         self, reference: object, voxel_size: float, *,
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
-        search: GlobalSearchOption | None = None, handover_angle: float = np.deg2rad(3.0),
+        search: GlobalSearchOption | None = None, handover_angle: float = np.deg2rad(6.0),
         law_reach: float = np.deg2rad(15.0),
     ) -> None:
         self.stepper = SpectralStepper(reference, voxel_size, option=option, cloud=cloud)

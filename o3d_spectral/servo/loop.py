@@ -71,7 +71,11 @@ class ServoOptions:
         whole-scene correlation. None: the paper's law alone.
     handover_angle : float
         The law takes over once the best hypothesis' rotation is this close to the
-        identity, radians.
+        identity, radians: well inside the law's basin (alone it succeeds from 30-40
+        degrees on 25 of the 30 seeded scenes), so that the global search, whose cycles
+        cost seconds, stops as soon as the law can finish (30 of 30 at 3 or 6 degrees;
+        at 6, 252 search cycles of 981 instead of 282 of 878, and 15% less controller
+        time in all).
     law_reach : float
         When the law's increments since the handover add up to a turn larger than this
         (radians), the global search starts again.
@@ -91,7 +95,7 @@ class ServoOptions:
     search: GlobalSearchOption | None = field(
         default_factory=lambda: GlobalSearchOption(search_samples=128)
     )
-    handover_angle: float = np.deg2rad(3.0)
+    handover_angle: float = np.deg2rad(6.0)
     law_reach: float = np.deg2rad(15.0)
 
     def __post_init__(self) -> None:
