@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._checks import check_instance, check_number, check_voxel_span
 from .io.cloud import CloudArrays, PreparedCloud, as_arrays
 from .io.cloud import prepare as prepare_arrays
-from .io.rows import bounds
+from .io.rows import largest_side
 from .options import CloudOption, SpectralRegistrationOption
 
 __all__ = ["PreparedSource", "prepare", "prepared_cloud"]
@@ -38,8 +38,7 @@ def prepared_cloud(
     """``cloud`` checked (it must span 4 voxels) and prepared
     (:func:`o3d_spectral.io.cloud.prepare`, whose arguments these are)."""
     arrays = as_arrays(cloud, name)
-    lower, upper = bounds(arrays.points)
-    extent = float(np.max(upper - lower))
+    extent = largest_side(arrays.points)
     if extent < 4 * voxel_size:
         raise ValueError(
             f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from o3d_spectral.io.rows import bounds, every, lengths, some
+from o3d_spectral.io.rows import bounds, every, largest_side, lengths, some
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -13,6 +13,7 @@ def test_reductions_equal_numpys_to_the_bit(dtype):
     np.testing.assert_array_equal(lower, x.min(axis=0))
     np.testing.assert_array_equal(upper, x.max(axis=0))
     assert lower.dtype == x.dtype
+    assert largest_side(x) == float(np.max(np.ptp(x, axis=0)))
     np.testing.assert_array_equal(lengths(x), np.linalg.norm(x, axis=1))
     mask = x > 0.5
     np.testing.assert_array_equal(every(mask), np.all(mask, axis=1))

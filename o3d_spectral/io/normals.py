@@ -19,7 +19,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .rows import bounds, lengths, some
+from .rows import bounds, largest_side, lengths, some
 from .signs import SIGN_DISAGREEMENT, sign_disagreement
 
 __all__ = [
@@ -316,8 +316,7 @@ def _consistent(points: NDArray[np.float64], normals: NDArray[np.float64]) -> ND
         return propagated(points)
     except RuntimeError:  # Qhull: "input sites are cocircular or cospherical"
         jitter = np.random.default_rng(0).uniform(-1.0, 1.0, points.shape)
-        lower, upper = bounds(points)
-        return propagated(points + JOGGLE * float(np.max(upper - lower)) * jitter)
+        return propagated(points + JOGGLE * largest_side(points) * jitter)
 
 
 def view_direction(
@@ -383,6 +382,5 @@ def sensor_position(
         return origin
     if view is None:
         return None
-    lower, upper = bounds(points)
-    size = float(np.max(upper - lower))
+    size = largest_side(points)
     return points.mean(axis=0) + DISTANT_SENSOR * max(size, 1.0) * view

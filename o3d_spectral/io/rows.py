@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["bounds", "lengths", "every", "some"]
+__all__ = ["bounds", "largest_side", "lengths", "every", "some"]
 
 
 def bounds(points: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -20,6 +20,13 @@ def bounds(points: ArrayLike) -> tuple[NDArray, NDArray]:
     p = np.asarray(points)
     return (np.array([p[:, k].min() for k in range(p.shape[1])]),
             np.array([p[:, k].max() for k in range(p.shape[1])]))
+
+
+def largest_side(points: ArrayLike) -> float:
+    """``np.max(np.ptp(points, axis=0))``: the largest side of the box holding ``points``
+    (N, D)."""
+    lower, upper = bounds(points)
+    return float(np.max(upper - lower))
 
 
 def lengths(vectors: NDArray[np.floating]) -> NDArray[np.floating]:

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import map_coordinates
 
-from ..io.rows import bounds
+from ..io.rows import largest_side
 from .egi import grid_points
 from .harmonics import sht
 
@@ -45,11 +45,7 @@ SHELL_STEP = 2
 def shell_voxel(*points: ArrayLike) -> float:
     """The shells' voxel edge (metres): the largest extent of any of the point sets
     (each (N, 3), metres) over ``SHELL_SPAN``."""
-    largest = 0.0
-    for p in points:
-        lower, upper = bounds(np.asarray(p, dtype=np.float64))
-        largest = max(largest, float(np.max(upper - lower)))
-    return largest / SHELL_SPAN
+    return max(largest_side(np.asarray(p, dtype=np.float64)) for p in points) / SHELL_SPAN
 
 
 def _magnitude(points: NDArray[np.float64], voxel: float) -> NDArray[np.float64]:
