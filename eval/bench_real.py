@@ -1,5 +1,5 @@
 """Benchmark: the global spectral call against FPFH-RANSAC on the bundled real scans,
-with the clouds' normals given three ways (issue 18).
+with the clouds' normals given three ways.
 
 Cases (``o3d_spectral.harness.real``): the dragon scan pairs 24 / 48 / 72 degrees apart
 and the YCB-Video models against their crop and the whole frame, each from

@@ -1,4 +1,4 @@
-"""Benchmark: how the global spectral call and FPFH-RANSAC scale (issue 17).
+"""Benchmark: how the global spectral call and FPFH-RANSAC scale.
 
 One case, the YCB-Video mug's model points against the whole frame (``ycbv_frame_025_mug``
 of ``o3d_spectral.harness.real``; source turned by the seeded rotation 0), one thread, each

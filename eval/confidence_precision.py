@@ -1,5 +1,5 @@
 """How far the global spectral call's ``confidence`` can be trusted: precision and
-coverage at a few thresholds (issue 18).
+coverage at a few thresholds.
 
 For each threshold ``t``: *coverage* is the share of registrations whose confidence is at
 least ``t``, *precision* the share of those that succeeded. Reads the rows of an

@@ -69,11 +69,11 @@ def verify(
         The fit of ``pose``, and the best fit of a hypothesis that turns the cloud over
         ``DISTINCT_ANGLE`` from ``pose`` (0 when there is none), each in [0, 1].
     """
-    _, share = fit(stepper, moving, fixed, pose, polish=False)
+    share = fit(stepper, moving, fixed, pose, polish=False).share
     rival = 0.0
     for other in list(others)[:RIVALS]:  # measured where they are: distinct ones only
         if so3.rotation_angle(other[:3, :3].T @ pose[:3, :3]) > DISTINCT_ANGLE:
-            _, other_share = fit(stepper, moving, fixed, other, polish=False)
+            other_share = fit(stepper, moving, fixed, other, polish=False).share
             rival = max(rival, _facing_share(stepper, moving, fixed, other, other_share))
     return _facing_share(stepper, moving, fixed, pose, share), rival
 
