@@ -38,6 +38,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
+from .io.rows import lengths
 from .refinement import near_pose, point_to_plane_icp
 from .search import DISTINCT_ANGLE, Hypothesis
 from .spectra import so3
@@ -144,9 +145,12 @@ def fit(
     source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     for distance in ICP_DISTANCES if polish else ():
         pose = point_to_plane_icp(source, near, distance * voxel, pose)
-    share, close = (o3d.pipelines.registration.evaluate_registration(
-        source, near, within * voxel, pose).fitness for within in (1.0, CLOSE_DISTANCE))
-    return Fit(pose, float(share), float(close))
+    measured = o3d.pipelines.registration.evaluate_registration(source, near, voxel, pose)
+    pairs = np.asarray(measured.correspondence_set).reshape(-1, 2)  # nearest within a voxel
+    posed = points[pairs[:, 0]] @ pose[:3, :3].T + pose[:3, 3]
+    offsets = posed - np.asarray(near.points)[pairs[:, 1]]
+    close = np.count_nonzero(lengths(offsets) < CLOSE_DISTANCE * voxel) / len(points)
+    return Fit(pose, float(measured.fitness), float(close))
 
 
 def applies(stepper: SpectralStepper, moving: MovingCloud) -> bool:
