@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import confirmation
+from . import centring, confirmation
 from .ascent import best_ascent
 from .io.cloud import to_legacy
 from .law import Climb
@@ -28,7 +28,8 @@ from .options import (
 )
 from .result import SpectralRegistrationResult
 from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start, with_normals
-from .search import climbed, confidence, ranked_hypotheses, sweeps
+from .search import DISTINCT_ANGLE, climbed, confidence, ranked_hypotheses, sweeps
+from .spectra import so3
 from .stages import StageClock
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global"]
@@ -164,7 +165,10 @@ def registration_spectral_global(
        (:func:`o3d_spectral.search.climbed`);
     5. **ascent**: between two scans, the best pose turned to where the phase
        correlation's peak is highest (:mod:`o3d_spectral.ascent`);
-    6. **polish**: the point-to-plane refinement and Open3D's scoring.
+    6. **polish**: the point-to-plane refinement and Open3D's scoring; where the best
+       placed pose, as the confirmation polished it, lies clearly closer to the target
+       than the result, it is polished and returned instead
+       (:func:`o3d_spectral.confirmation.closer`).
 
     Against a single view the search correlates the view with the model as the sensor
     would see it; against a whole scene it focuses on the scene's normals where the
@@ -227,6 +231,11 @@ def registration_spectral_global(
     with clock.stage("polish"):
         result = finish(run, result, best, pose @ run.init, refinement,
                         max_correspondence_distance)
+        placed = None if confirmed is not None else _closer_placed(run, ranked, result, memo)
+        if placed is not None:  # the best placed pose lies clearly closer: returned instead
+            best, pose, result = _confirmed(run, placed)
+            result = finish(run, result, best, pose @ run.init, refinement,
+                            max_correspondence_distance)
     result.stage_times = clock.times
     return result
 
@@ -250,15 +259,38 @@ def _confirmation(
 def _confirmed(
     run: Run, confirmed: confirmation.Confirmation
 ) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
-    """The result of a call whose best placed hypothesis was confirmed
-    (:func:`o3d_spectral.confirmation.confirm`): its pose, with no climb."""
+    """The result of a call that returns its best placed hypothesis, polished
+    (:func:`o3d_spectral.confirmation.confirm`): its pose, with no climb;
+    ``result.confirmed`` as ``confirmed.confirmed``."""
     result = SpectralRegistrationResult()
-    result.confirmed = True
+    result.confirmed = confirmed.confirmed
     pose = confirmed.transformation
     result.hypotheses = [(pose @ run.init, confirmed.fit)]
     result.confidence = confirmed.fit - confirmed.runner_up
     result.rival_fit = confirmed.runner_up
     return Climb(run.moving.centroid, converged=True), pose, result
+
+
+def _closer_placed(
+    run: Run, ranked: list, result: SpectralRegistrationResult, memo: dict
+) -> confirmation.Confirmation | None:
+    """The best placed hypothesis as the confirmation polished it, where it lies clearly
+    closer to the fixed cloud than ``result``'s pose (:func:`o3d_spectral.confirmation.closer`),
+    with that pose's fit as its rival's when it is distinct; None otherwise, or where no
+    confirmation measured it (a scene)."""
+    placed = memo.get("fits", {}).get(ranked[0].transformation(run.moving.centroid).tobytes())
+    if placed is None:
+        return None
+    pose = result.transformation
+    if run.offset is not None:  # to the frame the run works in, then the moving cloud's
+        pose = centring.shifted(pose, run.offset)
+    pose = pose @ np.linalg.inv(run.init)
+    returned = confirmation.fit(run.stepper, run.moving, memo["fixed"], pose, polish=False)
+    if not confirmation.closer(placed, returned):
+        return None
+    distinct = so3.rotation_angle(pose[:3, :3].T @ placed.pose[:3, :3]) > DISTINCT_ANGLE
+    return confirmation.Confirmation(placed.pose, placed.share,
+                                     returned.share if distinct else 0.0, confirmed=False)
 
 
 def _searched(

@@ -10,6 +10,7 @@ import pytest
 import o3d_spectral
 from o3d_spectral import confirmation
 from o3d_spectral.harness.errors import rotation_error, translation_error
+from o3d_spectral.harness.metrics import instance_score
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
@@ -166,3 +167,22 @@ def test_a_crop_into_its_scene_is_searched_as_an_object_in_a_scene():
     centre = np.asarray(crop.points).mean(axis=0)
     assert rotation_error(result.transformation, truth) < 2.0
     assert translation_error(result.transformation, truth, center=centre) < 0.005
+
+
+def test_closer_needs_a_clear_lead_in_closeness():
+    placed = confirmation.Fit(np.eye(4), 0.5, 0.40)
+    assert confirmation.closer(placed, confirmation.Fit(np.eye(4), 0.9, 0.40 - 0.06))
+    assert not confirmation.closer(placed, confirmation.Fit(np.eye(4), 0.4, 0.40 - 0.04))
+
+
+@pytest.mark.slow
+def test_a_closer_placed_pose_is_returned_instead_of_the_climbed_one(monkeypatch):
+    """An occluded banana: the climbs end on a wrong pose that the spectral score ranks
+    first; the best placed pose, polished, lies clearly closer to the view and is right."""
+    instance = make_instance("occluded", "banana", rng=instance_rng(0, 72))
+    score = instance_score(instance)
+    result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
+    assert not result.confirmed and score(np.asarray(result.transformation))[2]
+    monkeypatch.setattr(confirmation, "CLOSER_MARGIN", 2.0)  # never closer: the climbs' pose
+    climbed = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
+    assert not score(np.asarray(climbed.transformation))[2]
