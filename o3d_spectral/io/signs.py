@@ -94,9 +94,17 @@ def _neighbour_pairs(
     queries = np.linspace(0, len(p) - 1, min(_SIGN_QUERIES, len(p))).astype(np.int64)
     _, nearest = cKDTree(p).query(p[queries], k=k + 1)
     nearest = nearest[:, 1:]
-    opposite = np.einsum("ij,ikj->ik", n[queries], n[nearest]) < 0.0
-    offsets = p[nearest] - p[queries][:, None, :]
-    neighbour_ahead = np.einsum("ij,ikj->ik", n[queries], offsets)  # of the query's plane
-    query_ahead = -np.einsum("ikj,ikj->ik", n[nearest], offsets)  # of the neighbour's plane
-    along = np.abs(neighbour_ahead) < 0.5 * np.linalg.norm(offsets, axis=2)  # not across a wall
+    # component by component (Q, k): NumPy reduces the short last axis of (Q, k, 3) slowly
+    n_query = [n[queries, axis][:, None] for axis in range(3)]
+    n_near = [n[:, axis][nearest] for axis in range(3)]
+    offsets = [p[:, axis][nearest] - p[queries, axis][:, None] for axis in range(3)]
+    opposite = _dot(n_query, n_near) < 0.0
+    neighbour_ahead = _dot(n_query, offsets)  # of the query's plane
+    query_ahead = -_dot(n_near, offsets)  # of the neighbour's plane
+    along = np.abs(neighbour_ahead) < 0.5 * np.sqrt(_dot(offsets, offsets))  # not across a wall
     return opposite, (neighbour_ahead < 0.0) & (query_ahead < 0.0), along
+
+
+def _dot(a: list[NDArray[np.float64]], b: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """The dot products of two vector arrays given as their three components."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
