@@ -169,11 +169,15 @@ def _surfaces_behind(
 
 
 def _behind_share(key: NDArray, depth: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
-    """Per row of ``key`` (K, N: each point's ray) and ``depth`` (K, N, metres): the share
-    of the rays holding two points or more whose depths are more than ``gap`` metres
-    apart; 1 for a row where no ray holds two. Shape (K,)."""
+    """Per row of ``key`` (K, N: each point's ray, whole numbers from 0) and ``depth``
+    (K, N, metres): the share of the rays holding two points or more whose depths are
+    more than ``gap`` metres apart; 1 for a row where no ray holds two. Shape (K,)."""
     rows, n = key.shape
-    order = np.argsort(key, axis=1)  # a ray's depths in any order: half a stable sort's time
+    if key.max() < 2**16:  # keys of 16 bits: NumPy's stable sort is then a radix sort
+        key = key.astype(np.uint16)
+        order = np.argsort(key, axis=1, kind="stable")
+    else:
+        order = np.argsort(key, axis=1)  # a ray's depths in any order
     key, depth = np.take_along_axis(key, order, 1), np.take_along_axis(depth, order, 1)
     first = np.ones(key.shape, dtype=bool)
     first[:, 1:] = np.diff(key, axis=1) != 0
