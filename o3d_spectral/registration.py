@@ -225,7 +225,7 @@ def registration_spectral_global(
             ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, memo=memo)
         confirmed = _confirmation(run, search, ranked, clock, memo)
     if confirmed is not None:
-        best, pose, result = _confirmed(run, confirmed)
+        best, pose, result = _placed_result(run, confirmed)
     else:
         best, pose, result = _searched(run, search, ranked, focus, clock)
     with clock.stage("polish"):
@@ -233,7 +233,7 @@ def registration_spectral_global(
                         max_correspondence_distance)
         placed = None if confirmed is not None else _closer_placed(run, ranked, result, memo)
         if placed is not None:  # the best placed pose lies clearly closer: returned instead
-            best, pose, result = _confirmed(run, placed)
+            best, pose, result = _placed_result(run, placed)
             result = finish(run, result, best, pose @ run.init, refinement,
                             max_correspondence_distance)
     result.stage_times = clock.times
@@ -256,7 +256,7 @@ def _confirmation(
     return confirmed if confirmed.confirmed else None
 
 
-def _confirmed(
+def _placed_result(
     run: Run, confirmed: confirmation.Confirmation
 ) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
     """The result of a call that returns its best placed hypothesis, polished
