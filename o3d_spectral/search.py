@@ -112,13 +112,14 @@ class Hypothesis:
 
 def hypotheses(
     stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption, *,
-    around: ArrayLike | None = None,
+    around: ArrayLike | None = None, memo: dict | None = None,
 ) -> list[Hypothesis]:
     """The ``search.hypotheses`` highest peaks of ``C_r`` over SO(3), each placed by phase
-    correlation (near ``around``, metres, when given), highest placed peak first."""
+    correlation (near ``around``, metres, when given), highest placed peak first;
+    ``memo``: placements kept from other searches on the same clouds (:func:`_placed`)."""
     rotations = egi_rotations(stepper, moving, search)
     return _placed(stepper, moving, rotations, around, search.coarse_placements,
-                   two_views=stepper.two_views(moving), workers=search.workers)
+                   two_views=stepper.two_views(moving), workers=search.workers, memo=memo)
 
 
 def egi_rotations(
@@ -202,11 +203,13 @@ def _placed(
     where the moving cloud spans at most :data:`PLACEMENT_SPAN` cells, and only the
     ``coarse_placements`` (when over 0) that place best on one twice as coarse
     (:meth:`o3d_spectral.SpectralStepper.locate`) are kept; ``memo`` (a dict, kept across
-    calls on the same clouds) holds those coarse scores and placements so that a rotation
-    is placed once however often it is ranked. Placed on ``workers`` threads
+    calls on the same clouds) holds those coarse scores and the placements, by rotation
+    and the block of the fixed grid searched, so that a rotation is placed once on a
+    block however often it is ranked (near a place whose search covers the whole grid, a
+    focused peak the whole EGI also had is placed once). Placed on ``workers`` threads
     (:func:`o3d_spectral.parallel.thread_map`)."""
     factor = 1.0
-    memo = {} if memo is None or around is not None else memo
+    memo = {} if memo is None else memo
     if around is None and two_views:
         factor = span_factor(stepper, moving, PLACEMENT_SPAN)
         if 0 < coarse_placements < len(rotations):
@@ -222,10 +225,13 @@ def _placed(
         centre, peak, cost = stepper.locate(moving, R, around=around, factor=factor)
         return Hypothesis(R, centre, peak, cost)
 
-    new = [R for R, _ in rotations if ("placed", R.tobytes()) not in memo]
+    grid = stepper.grid.coarsened(factor)
+    block = grid.search_box(moving.radius, around)  # the block locate searches
+    searched = (factor, None if block is grid.box else tuple(block.offset))
+    new = [R for R, _ in rotations if ("placed", R.tobytes(), searched) not in memo]
     for R, hypothesis in zip(new, thread_map(placed, new, workers), strict=True):
-        memo["placed", R.tobytes()] = hypothesis
-    return _best_first([memo["placed", R.tobytes()] for R, _ in rotations])
+        memo["placed", R.tobytes(), searched] = hypothesis
+    return _best_first([memo["placed", R.tobytes(), searched] for R, _ in rotations])
 
 
 def _best_first(found: list[Hypothesis]) -> list[Hypothesis]:
@@ -246,10 +252,11 @@ def places(ranked: list[Hypothesis], separation: float) -> list[NDArray[np.float
 
 def _focused_hypotheses(
     stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption,
-    ranked: list[Hypothesis],
+    ranked: list[Hypothesis], memo: dict,
 ) -> tuple[list[Hypothesis], bool]:
     """``ranked`` and the hypotheses of the EGI focused on each of the
-    ``search.focus_places`` best places, best first; and whether any focus applied."""
+    ``search.focus_places`` best places, best first; and whether any focus applied.
+    ``memo``: the placements made (:func:`_placed`)."""
     radius = moving.radius + FOCUS_MARGIN * stepper.voxel_size
     focus = False
     for located in places(ranked, moving.radius)[: search.focus_places]:
@@ -257,7 +264,7 @@ def _focused_hypotheses(
         if ball is stepper:  # the fixed cloud is about the moving one's size
             break
         focus = True
-        ranked = ranked + hypotheses(ball, moving, search, around=located)
+        ranked = ranked + hypotheses(ball, moving, search, around=located, memo=memo)
     return _best_first(ranked), focus
 
 
@@ -297,7 +304,7 @@ def ranked_hypotheses(
                      two_views=two_views, workers=search.workers, memo=memo)
     if not search.egi_focus:
         return ranked, False
-    return _focused_hypotheses(stepper, moving, search, ranked)
+    return _focused_hypotheses(stepper, moving, search, ranked, memo)
 
 
 def sweeps(stepper: SpectralStepper, moving: MovingCloud, search: GlobalSearchOption) -> bool:

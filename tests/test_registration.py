@@ -330,6 +330,35 @@ def test_a_model_is_placed_at_full_resolution():
     assert len(found) > 16
 
 
+def test_a_scene_search_places_each_rotation_once_per_searched_block(monkeypatch):
+    """In a scene the focused searches place their peaks near each place; where that
+    search covers the whole grid, a peak placed already (by the whole EGI, or near
+    another place) is not placed again, and a second ranking on the same memo places
+    nothing: every (rotation, block) is placed once."""
+    instance = make_instance("cluttered", "power_drill", rng=np.random.default_rng(1))
+    stepper = o3d_spectral.SpectralStepper(instance.target, VOXEL)
+    moving = stepper.moving(instance.source)
+    placed = []
+    locate = o3d_spectral.SpectralStepper.locate
+
+    def counted(self, moving, rotation, *, around=None, factor=1.0):
+        grid = self.grid.coarsened(factor)
+        block = grid.search_box(moving.radius, around)
+        placed.append((rotation.tobytes(), None if block is grid.box else tuple(block.offset)))
+        return locate(self, moving, rotation, around=around, factor=factor)
+
+    monkeypatch.setattr(o3d_spectral.SpectralStepper, "locate", counted)
+    memo: dict = {}
+    first, focus = search.ranked_hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(),
+                                            memo=memo)
+    assert focus and len(placed) == len(set(placed)) > 16
+    count = len(placed)
+    again, _ = search.ranked_hypotheses(stepper, moving, o3d_spectral.GlobalSearchOption(),
+                                        memo=memo)
+    assert len(placed) == count  # all from the memo
+    assert [h.translation_peak for h in again] == [h.translation_peak for h in first]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["power_drill", "cracker_box", "gelatin_box"])
 def test_global_search_registers_an_object_in_a_cluttered_scene(name):
