@@ -39,6 +39,7 @@ import open3d as o3d
 from numpy.typing import NDArray
 
 from .io.rows import lengths
+from .parallel import resolved_workers, thread_map
 from .refinement import near_pose, point_to_plane_icp
 from .search import DISTINCT_ANGLE, Hypothesis
 from .spectra import so3
@@ -171,7 +172,7 @@ def applies(stepper: SpectralStepper, moving: MovingCloud) -> bool:
 
 def confirm(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
-    ranked: list[Hypothesis], *, fits: dict | None = None,
+    ranked: list[Hypothesis], *, fits: dict | None = None, workers: int | None = 1,
 ) -> Confirmation:
     """Whether the best of ``ranked`` (placed hypotheses, best first) is clearly right.
 
@@ -186,18 +187,28 @@ def confirm(
     fits : dict, optional
         :func:`fit`'s results (:class:`Fit`) by start pose, kept across calls on the same
         clouds: a hypothesis still among the best after the sweep is not polished again.
+    workers : int or None
+        Threads (all cores when None). On one, the rivals are polished only where the
+        best fits; on more, the :data:`CANDIDATES` are polished side by side at once
+        (each the same whatever the thread: the outcome does not change).
 
     Returns
     -------
     Confirmation
     """
     fits = {} if fits is None else fits
+    starts = {start.tobytes(): start for start in
+              (hypothesis.transformation(moving.centroid) for hypothesis in ranked[:CANDIDATES])}
+    if resolved_workers(workers) > 1:
+        missing = [key for key in starts if key not in fits]
+        polished = thread_map(lambda key: fit(stepper, moving, fixed, starts[key]), missing,
+                              workers)
+        fits.update(zip(missing, polished, strict=True))
 
     def fitted(hypothesis: Hypothesis) -> Fit:
-        start = hypothesis.transformation(moving.centroid)
-        key = start.tobytes()
+        key = hypothesis.transformation(moving.centroid).tobytes()
         if key not in fits:
-            fits[key] = fit(stepper, moving, fixed, start)
+            fits[key] = fit(stepper, moving, fixed, starts[key])
         return fits[key]
 
     best = fitted(ranked[0])

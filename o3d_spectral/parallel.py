@@ -1,21 +1,25 @@
 """Independent work of one call spread over threads.
 
-The global search's placements and climbs are independent of each other, and their time
-is in FFTs and compiled loops that release the GIL, so threads share them out. Each item
-is computed whole by one thread and the results come back in the items' order: a call
-gives the same result, to the bit, whatever its number of workers. The pools are kept
-between calls; a process forked after a threaded call starts its own.
+The global search's placements, climbs and the confirmation's polishes are independent of
+each other, and their time is in FFTs, compiled loops and Open3D's ICP, which release the
+GIL, so threads share them out. Each item is computed whole by one thread and the results
+come back in the items' order: a call gives the same result, to the bit, whatever its
+number of workers. The pools are kept between calls; a process forked after a threaded
+call starts its own.
 """
 
 from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import TypeVar
 
-__all__ = ["resolved_workers", "thread_map"]
+import open3d as o3d
+
+__all__ = ["resolved_workers", "thread_map", "one_open3d_thread"]
 
 Item = TypeVar("Item")
 Out = TypeVar("Out")
@@ -66,3 +70,38 @@ def thread_map(
         if pool is None:
             pool = _pools[count] = ThreadPoolExecutor(count, thread_name_prefix="o3d_spectral")
     return list(pool.map(function, items))
+
+
+class _Open3DThreads:
+    """How many :func:`one_open3d_thread` blocks are open, and Open3D's thread count
+    before the first of them opened."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.open = 0
+        self.saved = 1
+
+
+_open3d_threads = _Open3DThreads()
+
+
+@contextmanager
+def one_open3d_thread() -> Iterator[None]:
+    """Open3D's own parallel loops limited to one thread while the block runs, in this
+    thread and any other: its multi-threaded sums change the last bits of a result from
+    run to run, and a result must repeat exactly. Blocks may overlap across threads (the
+    confirmation's polishes run side by side): the limit holds until the last one closes,
+    which restores the count the first one found."""
+    state = _open3d_threads
+    with state.lock:
+        if state.open == 0:
+            state.saved = o3d.utility.get_max_threads()
+            o3d.utility.set_max_threads(1)
+        state.open += 1
+    try:
+        yield
+    finally:
+        with state.lock:
+            state.open -= 1
+            if state.open == 0:
+                o3d.utility.set_max_threads(state.saved)

@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from .io.cloud import extent
 from .io.rows import bounds
 from .options import RefinementOption
+from .parallel import one_open3d_thread
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
@@ -101,8 +102,9 @@ def point_to_plane_icp(
     point ``d`` from that origin (a 2.6 degree first step at 50 m: 5 cm), which far from
     the origin throws the source out of the correspondence distance after one step.
     About the source's centroid the error is that of the object's own size, at any
-    distance. Runs on one thread: Open3D's multi-threaded sums change the last bits of
-    the result from run to run, and a result must repeat exactly.
+    distance. Open3D's loops run on one thread (:func:`o3d_spectral.parallel.one_open3d_thread`):
+    a result must repeat exactly; several ICPs may run side by side on the caller's
+    threads, as Open3D's ICP releases the GIL.
     """
     init = np.asarray(init, dtype=np.float64)
     points = np.asarray(source.points)
@@ -110,9 +112,7 @@ def point_to_plane_icp(
     moved = o3d.geometry.PointCloud(target).translate(-centre)  # a copy; normals unchanged
     to_centre = np.eye(4)
     to_centre[:3, 3] = -centre
-    threads = o3d.utility.get_max_threads()
-    o3d.utility.set_max_threads(1)
-    try:
+    with one_open3d_thread():
         result = o3d.pipelines.registration.registration_icp(
             source,
             moved,
@@ -120,8 +120,6 @@ def point_to_plane_icp(
             to_centre @ init,
             o3d.pipelines.registration.TransformationEstimationPointToPlane(),
         )
-    finally:
-        o3d.utility.set_max_threads(threads)
     transformation = np.array(result.transformation)
     transformation[:3, 3] += centre
     return transformation

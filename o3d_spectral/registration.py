@@ -252,7 +252,8 @@ def _confirmation(
         if "fixed" not in memo:
             memo["fixed"] = with_normals(to_legacy(run.target), run.stepper)
         confirmed = confirmation.confirm(run.stepper, run.moving, memo["fixed"], ranked,
-                                         fits=memo.setdefault("fits", {}))
+                                         fits=memo.setdefault("fits", {}),
+                                         workers=search.workers)
     return confirmed if confirmed.confirmed else None
 
 

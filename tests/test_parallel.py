@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral.parallel import resolved_workers, thread_map
+from o3d_spectral.parallel import one_open3d_thread, resolved_workers, thread_map
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
 
@@ -37,6 +37,33 @@ def test_the_result_is_the_same_to_the_bit_whatever_the_workers(condition):
     np.testing.assert_array_equal(results[0].transformation, results[1].transformation)
     assert [s for _, s in results[0].hypotheses] == [s for _, s in results[1].hypotheses]
     assert results[0].fitness == results[1].fitness
+
+
+@pytest.mark.slow
+def test_the_confirmation_is_the_same_whatever_the_workers():
+    """A whole model against its view, confirmed early: on one thread the rivals are
+    polished only where the best fits, on four all the candidates side by side."""
+    instance = make_instance("full", "power_drill", rng=instance_rng(7, 3))
+    results = [
+        o3d_spectral.registration_spectral_global(
+            instance.source, instance.target, 0.008,
+            search=o3d_spectral.GlobalSearchOption(workers=workers))
+        for workers in (1, 4)
+    ]
+    assert results[0].confirmed
+    np.testing.assert_array_equal(results[0].transformation, results[1].transformation)
+    assert (results[0].fit, results[0].rival_fit) == (results[1].fit, results[1].rival_fit)
+
+
+def test_open3d_runs_on_one_thread_until_the_last_overlapping_block_closes():
+    import open3d as o3d
+
+    before = o3d.utility.get_max_threads()
+    with one_open3d_thread():
+        with one_open3d_thread():  # another thread's ICP, started meanwhile
+            assert o3d.utility.get_max_threads() == 1
+        assert o3d.utility.get_max_threads() == 1
+    assert o3d.utility.get_max_threads() == before
 
 
 def test_omp_num_threads_caps_the_default_workers(monkeypatch):
