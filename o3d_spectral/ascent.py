@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .parallel import thread_map
 from .search import Hypothesis, span_factor
 from .spectra import so3
 from .stepper import MovingCloud, SpectralStepper
@@ -90,11 +91,13 @@ def peak_ascent(
 
 
 def best_ascent(
-    stepper: SpectralStepper, moving: MovingCloud, poses: list[NDArray[np.float64]]
+    stepper: SpectralStepper, moving: MovingCloud, poses: list[NDArray[np.float64]],
+    workers: int | None = 1,
 ) -> Hypothesis:
     """:func:`peak_ascent` from the most promising of several poses (4, 4): each is first
-    ascended on a coarse grid (:data:`PRESELECT_SPAN`, :data:`PRESELECT_STEPS`), and the
-    one that peaks highest there is ascended in full.
+    ascended on a coarse grid (:data:`PRESELECT_SPAN`, :data:`PRESELECT_STEPS`; the poses
+    side by side on ``workers`` threads), and the one that peaks highest there is ascended
+    in full.
 
     Between two scans the law's climbs end 5-20 degrees from where the shapes agree best,
     and the climb that ends best-scored is not always the one nearest the truth: on dragon
@@ -104,9 +107,10 @@ def best_ascent(
     """
     start = poses[0]
     if len(poses) > 1:
-        coarse = [
-            peak_ascent(stepper, moving, pose, PRESELECT_STEPS, PRESELECT_SPAN) for pose in poses
-        ]
+        coarse = thread_map(
+            lambda pose: peak_ascent(stepper, moving, pose, PRESELECT_STEPS, PRESELECT_SPAN),
+            poses, workers,
+        )
         best = max(coarse, key=lambda h: h.translation_peak)  # the first of equals
         start = best.transformation(moving.centroid)
     return peak_ascent(stepper, moving, start)

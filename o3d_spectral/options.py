@@ -250,7 +250,8 @@ class GlobalSearchOption:
         23% less time. Not for a model against a view (it loses occluded views) or a
         scene (the coarse grid ranks clutter above the object).
     workers : int or None
-        Threads the placements and the climbs are spread over (they are independent);
+        Threads the independent parts of the search are spread over (the placements and
+        the sweep's, the confirmation's polishes, the climbs, the ascent's coarse starts);
         every core when None, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when that
         is set). The result is the same to the bit whatever the count
         (:mod:`o3d_spectral.parallel`).

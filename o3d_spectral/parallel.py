@@ -1,8 +1,9 @@
 """Independent work of one call spread over threads.
 
-The global search's placements, climbs and the confirmation's polishes are independent of
-each other, and their time is in FFTs, compiled loops and Open3D's ICP, which release the
-GIL, so threads share them out. Each item is computed whole by one thread and the results
+The global search's placements (and the sweep's batches of them), climbs, the ascent's
+coarse starts and the confirmation's polishes are independent of each other, and their
+time is in FFTs, compiled loops and Open3D's ICP, which release the GIL, so threads share
+them out. Each item is computed whole by one thread and the results
 come back in the items' order: a call gives the same result, to the bit, whatever its
 number of workers. The pools are kept between calls; a process forked after a threaded
 call starts its own.

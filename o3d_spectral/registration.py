@@ -315,7 +315,8 @@ def _searched(
     result.translation_peak = record.translation_peak
     if search.peak_ascent and run.stepper.two_views(run.moving):
         with clock.stage("ascent"):  # from the best of every climb's best
-            ascended = best_ascent(run.stepper, run.moving, [M for _, M, _ in ranked_iterates])
+            ascended = best_ascent(run.stepper, run.moving, [M for _, M, _ in ranked_iterates],
+                                   search.workers)
             pose = ascended.transformation(run.moving.centroid)
             result.translation_peak = ascended.translation_peak
     return best, pose, result

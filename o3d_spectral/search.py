@@ -155,7 +155,7 @@ def span_factor(stepper: SpectralStepper, moving: MovingCloud, span: float) -> f
 
 
 def swept_rotations(
-    stepper: SpectralStepper, moving: MovingCloud, count: int
+    stepper: SpectralStepper, moving: MovingCloud, count: int, workers: int | None = 1
 ) -> list[tuple[NDArray[np.float64], float]]:
     """For two single views: the :data:`SWEEP_PLACEMENTS` rotations, of ``count`` spread
     evenly over SO(3), that place best by phase correlation on a coarse grid (rotation,
@@ -164,32 +164,40 @@ def swept_rotations(
     Of the ``count`` rotations of :func:`o3d_spectral.spectra.so3.uniform_rotations`, those that
     turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
     fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a
-    moving cloud over :data:`SWEEP_SPAN` of those across). Two scans far enough apart
-    share too little of their normals for the EGI's peaks to hold their rotation (dragon
-    scans 48 and 96 degrees: none of the 200 highest within 100 degrees of it, none of
-    the shells' within 50); the peak of a phase correlation, which compares the shapes
-    themselves, is highest there (0.37 on a grid of 2 voxels, against at most 0.23 for
-    the EGI's candidates).
+    moving cloud over :data:`SWEEP_SPAN` of those across), on ``workers`` threads. Two
+    scans far enough apart share too little of their normals for the EGI's peaks to hold
+    their rotation (dragon scans 48 and 96 degrees: none of the 200 highest within 100
+    degrees of it, none of the shells' within 50); the peak of a phase correlation,
+    which compares the shapes themselves, is highest there (0.37 on a grid of 2 voxels,
+    against at most 0.23 for the EGI's candidates).
     """
     rotations = so3.uniform_rotations(count)
     toward = rotations @ moving.reading.view @ stepper.target_reading.view
     rotations = rotations[toward >= np.cos(SWEEP_SENSOR_ANGLE)]
     factor = max(SWEEP_FACTOR, span_factor(stepper, moving, SWEEP_SPAN))
-    scores = placed_peaks(stepper, moving, rotations, factor)
+    scores = placed_peaks(stepper, moving, rotations, factor, workers)
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
     return [(rotations[i], float(scores[i])) for i in best]
 
 
 def placed_peaks(
     stepper: SpectralStepper, moving: MovingCloud, rotations: Iterable[NDArray[np.float64]],
-    factor: float = 1.0,
+    factor: float = 1.0, workers: int | None = 1,
 ) -> NDArray[np.float64]:
     """The phase-correlation peak heights of the moving cloud turned by each rotation
     (3, 3) about its centroid and placed anywhere on a grid of ``factor`` voxels:
     :meth:`o3d_spectral.SpectralStepper.locate`'s for each, batched
-    (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.peaks`)."""
-    moved = (stepper.visible(moving, R, np.zeros(3))[0] for R in rotations)
-    return stepper.grid.coarsened(factor).peaks(moved, moving.radius, moving.centroid)
+    (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.peaks`), the batches on
+    ``workers`` threads (the same heights whatever the threads)."""
+    grid, rotations = stepper.grid.coarsened(factor), list(rotations)
+    size = grid.peaks_batch(moving.radius)
+
+    def heights(batch: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+        moved = (stepper.visible(moving, R, np.zeros(3))[0] for R in batch)
+        return grid.peaks(moved, moving.radius, moving.centroid)
+
+    batches = [rotations[i : i + size] for i in range(0, len(rotations), size)]
+    return np.concatenate([np.zeros(0), *thread_map(heights, batches, workers)])
 
 
 def _placed(
@@ -215,7 +223,8 @@ def _placed(
         if 0 < coarse_placements < len(rotations):
             coarse = COARSE_FACTOR * factor
             new = [R for R, _ in rotations if ("coarse", R.tobytes()) not in memo]
-            for R, score in zip(new, placed_peaks(stepper, moving, new, coarse), strict=True):
+            scores = placed_peaks(stepper, moving, new, coarse, workers)
+            for R, score in zip(new, scores, strict=True):
                 memo["coarse", R.tobytes()] = score
             scores = np.array([memo["coarse", R.tobytes()] for R, _ in rotations])
             best = np.argsort(-scores, kind="stable")[:coarse_placements]
@@ -299,7 +308,7 @@ def ranked_hypotheses(
         memo["candidates"] = rotations
     rotations = list(memo["candidates"])
     if sweep and sweeps(stepper, moving, search):
-        rotations += swept_rotations(stepper, moving, search.sweep_rotations)
+        rotations += swept_rotations(stepper, moving, search.sweep_rotations, search.workers)
     ranked = _placed(stepper, moving, rotations, None, search.coarse_placements,
                      two_views=two_views, workers=search.workers, memo=memo)
     if not search.egi_focus:

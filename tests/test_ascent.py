@@ -87,6 +87,9 @@ def test_batched_placement_peaks_are_those_of_one_placement_each(scans):
         one_each = [stepper.locate(moving, R, factor=factor)[1] for R in rotations]
         batched = placed_peaks(stepper, moving, rotations, factor)
         np.testing.assert_allclose(batched, one_each, rtol=1e-5)
+        threaded = placed_peaks(stepper, moving, rotations, factor, workers=3)
+        np.testing.assert_array_equal(threaded, batched)  # batches split alike on threads
+        assert len(rotations) > stepper.grid.coarsened(factor).peaks_batch(moving.radius)
     assert np.argmax(batched) == 0  # the truth places best
 
 

@@ -83,3 +83,21 @@ def test_a_process_forked_after_a_threaded_call_runs_its_own_threads():
     with multiprocessing.get_context("fork").Pool(1) as pool:
         result = pool.apply_async(thread_map, (abs, [-1, -2, -3], 2))
         assert result.get(timeout=30) == [1, 2, 3]
+
+
+@pytest.mark.slow
+def test_two_scans_are_registered_the_same_whatever_the_workers():
+    """Dragon scans 96 degrees apart, without the confirmation: the sweep's batches, the
+    climbs and the ascent's coarse starts on one thread against four."""
+    from o3d_spectral.harness.real import load_cases
+
+    case = load_cases(["dragon_96"])[0]
+    results = [
+        o3d_spectral.registration_spectral_global(
+            case.source, case.target, 0.005,
+            search=o3d_spectral.GlobalSearchOption(workers=workers, confirm=False))
+        for workers in (1, 4)
+    ]
+    assert {"sweep", "ascent"} <= set(results[0].stage_times)
+    np.testing.assert_array_equal(results[0].transformation, results[1].transformation)
+    assert [s for _, s in results[0].hypotheses] == [s for _, s in results[1].hypotheses]

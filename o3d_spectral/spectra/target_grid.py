@@ -217,7 +217,7 @@ class TargetGrid:
         """
         box = self.moving_box(radius, centre)
         fft, spectrum = self._fft(self.box, box, radius)
-        batch = max(1, BATCH_BYTES // (fft.dtype.itemsize * int(np.prod(fft.shape))))
+        batch = self.peaks_batch(radius)
         sets, heights = iter(moved), []
         while chunk := list(islice(sets, batch)):
             grids = np.empty((len(chunk), *box.shape), dtype=fft.dtype)
@@ -226,6 +226,15 @@ class TargetGrid:
             F = padded_forward(grids, fft.shape)
             heights.append(peak_heights(F, spectrum, fft.shape, sigma=self.peak_width))
         return np.concatenate(heights) if heights else np.zeros(0)
+
+    def peaks_batch(self, radius: float) -> int:
+        """How many moving grids (of a cloud of ``radius`` metres) :meth:`peaks` transforms
+        together: :data:`BATCH_BYTES` of them. A caller spreading many sets over threads
+        splits them at these counts, so that each batch, and its result, is the same
+        whatever the threads."""
+        shape = self.fft_shape(self.box, self.moving_box(radius, np.zeros(3)), radius)
+        itemsize = fft_plan(shape, precision=PRECISION).dtype.itemsize
+        return max(1, BATCH_BYTES // (itemsize * int(np.prod(shape))))
 
     def _unit_grid(
         self, moved: NDArray[np.float64], box: Box, out: NDArray[np.floating]
