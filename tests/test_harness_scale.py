@@ -283,8 +283,14 @@ def _alive(pid: int) -> bool:
     return "\nState:\tZ" not in status  # a zombie has ended (only not yet reaped)
 
 
+@pytest.fixture(scope="module")
+def long_suite_dir(tmp_path_factory):
+    """A suite long enough that a two-worker eval is still running once its workers work."""
+    return full_suite(tmp_path_factory, 24)
+
+
 def _eval_with_workers(suite_dir, out) -> tuple[subprocess.Popen, set[int]]:
-    """``o3d-spectral eval`` with two workers, once both have started; and its processes."""
+    """``o3d-spectral eval`` with two workers, once they have written a row; and its processes."""
     root = str(Path(o3d_spectral.__file__).resolve().parents[1])
     env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     command = [sys.executable, "-m", "o3d_spectral.cli", "eval", "--suite", str(suite_dir),
@@ -293,18 +299,21 @@ def _eval_with_workers(suite_dir, out) -> tuple[subprocess.Popen, set[int]]:
     run = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True, start_new_session=True)
     deadline = time.monotonic() + 120
-    while len(_descendants(run.pid)) < 3 and time.monotonic() < deadline:  # tracker + 2
-        time.sleep(0.2)
-    time.sleep(3.0)  # the workers import and take their first tasks
+    rows = out / "results"
+    while time.monotonic() < deadline and run.poll() is None and not (
+        len(_descendants(run.pid)) >= 3 and any(f.stat().st_size for f in rows.glob("*.jsonl"))
+    ):  # the tracker and two workers, at work
+        time.sleep(0.1)
     processes = _descendants(run.pid)
+    assert run.poll() is None, "the eval ended before it could be stopped: give it more instances"
     assert len(processes) >= 3, processes
     return run, processes
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
-    run, processes = _eval_with_workers(suite_dir, tmp_path)
+def test_killed_eval_leaves_no_process_behind(long_suite_dir, tmp_path):
+    run, processes = _eval_with_workers(long_suite_dir, tmp_path)
     run.kill()  # SIGKILL: no handler of the parent runs
     run.wait(timeout=10)
     deadline = time.monotonic() + 5.0
@@ -319,8 +328,8 @@ def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_interrupted_eval_stops_with_one_line_and_status_130(suite_dir, tmp_path):
-    run, processes = _eval_with_workers(suite_dir, tmp_path)
+def test_interrupted_eval_stops_with_one_line_and_status_130(long_suite_dir, tmp_path):
+    run, processes = _eval_with_workers(long_suite_dir, tmp_path)
     os.killpg(run.pid, 2)  # Ctrl-C: the terminal signals the whole process group
     _, stderr = run.communicate(timeout=30)
     assert run.returncode == 130
