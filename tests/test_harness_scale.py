@@ -283,37 +283,52 @@ def _alive(pid: int) -> bool:
     return "\nState:\tZ" not in status  # a zombie has ended (only not yet reaped)
 
 
-@pytest.fixture(scope="module")
-def long_suite_dir(tmp_path_factory):
-    """A suite long enough that a two-worker eval is still running once its workers work."""
-    return full_suite(tmp_path_factory, 24)
+#: A method that outlasts the tests below: the eval is still running when they stop it.
+SLOW_PLUGIN = """
+import time
+
+import numpy as np
+
+from o3d_spectral.harness.methods import register_method
 
 
-def _eval_with_workers(suite_dir, out) -> tuple[subprocess.Popen, set[int]]:
-    """``o3d-spectral eval`` with two workers, once they have written a row; and its processes."""
+@register_method("slow_identity")
+def slow_identity(source, target, voxel_size, seed):
+    time.sleep(300)
+    return np.eye(4), {}
+"""
+
+
+def _eval_with_workers(suite_dir, tmp_path) -> tuple[subprocess.Popen, set[int]]:
+    """``o3d-spectral eval`` with two workers, once they have written a row, each task of
+    one of its methods lasting minutes; and its processes."""
     root = str(Path(o3d_spectral.__file__).resolve().parents[1])
-    env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "slow_plugin.py").write_text(SLOW_PLUGIN)
+    path = [root, str(tmp_path / "plugins"), os.environ.get("PYTHONPATH", "")]
+    env = os.environ | {"PYTHONPATH": os.pathsep.join(path)}
+    out = tmp_path / "out"
     command = [sys.executable, "-m", "o3d_spectral.cli", "eval", "--suite", str(suite_dir),
-               "--out", str(out), "--quiet", "--workers", "2", "--methods", "spectral_global",
-               "fpfh_ransac"]
+               "--out", str(out), "--quiet", "--workers", "2", "--plugin", "slow_plugin",
+               "--methods", "fpfh_ransac", "slow_identity"]
     run = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True, start_new_session=True)
     deadline = time.monotonic() + 120
-    rows = out / "results"
     while time.monotonic() < deadline and run.poll() is None and not (
-        len(_descendants(run.pid)) >= 3 and any(f.stat().st_size for f in rows.glob("*.jsonl"))
+        len(_descendants(run.pid)) >= 3
+        and any(f.stat().st_size for f in (out / "results").glob("*.jsonl"))
     ):  # the tracker and two workers, at work
         time.sleep(0.1)
     processes = _descendants(run.pid)
-    assert run.poll() is None, "the eval ended before it could be stopped: give it more instances"
+    assert run.poll() is None, run.stderr.read()
     assert len(processes) >= 3, processes
     return run, processes
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_killed_eval_leaves_no_process_behind(long_suite_dir, tmp_path):
-    run, processes = _eval_with_workers(long_suite_dir, tmp_path)
+def test_killed_eval_leaves_no_process_behind(suite_dir, tmp_path):
+    run, processes = _eval_with_workers(suite_dir, tmp_path)
     run.kill()  # SIGKILL: no handler of the parent runs
     run.wait(timeout=10)
     deadline = time.monotonic() + 5.0
@@ -328,8 +343,8 @@ def test_killed_eval_leaves_no_process_behind(long_suite_dir, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_interrupted_eval_stops_with_one_line_and_status_130(long_suite_dir, tmp_path):
-    run, processes = _eval_with_workers(long_suite_dir, tmp_path)
+def test_interrupted_eval_stops_with_one_line_and_status_130(suite_dir, tmp_path):
+    run, processes = _eval_with_workers(suite_dir, tmp_path)
     os.killpg(run.pid, 2)  # Ctrl-C: the terminal signals the whole process group
     _, stderr = run.communicate(timeout=30)
     assert run.returncode == 130
