@@ -21,6 +21,7 @@ from .parallel import one_open3d_thread
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
+    "polish_within_reach", "convergence", "REACH",
     "representatives", "SCORE_CELL", "DENSE_PER_VOXEL",
 ]
 
@@ -30,6 +31,13 @@ GUARD_SHARE = 0.5
 
 #: The tutorial's correspondence distance, voxels.
 TUTORIAL_DISTANCE = 0.4
+
+#: :func:`polish_within_reach`: the source's points farther from the target than the
+#: ICP's correspondence distance and this many times it again are left out of the final
+#: polish. The polish starts from a pose polished on the down-sampled source already and
+#: moves the source by a fraction of the correspondence distance; a pose that moved some
+#: point by as much is polished again on the whole source.
+REACH = 1.5
 
 #: :func:`representatives`: a cloud with over this many points per occupied voxel is
 #: polished and scored one point per cell of :data:`SCORE_CELL` voxels.
@@ -93,6 +101,7 @@ def point_to_plane_icp(
     target: o3d.geometry.PointCloud,
     max_distance: float,
     init: ArrayLike,
+    cut_from: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Open3D's point-to-plane ICP from ``init`` (4, 4), correspondences up to
     ``max_distance`` metres; returns the 4x4 source-to-target transformation.
@@ -107,9 +116,15 @@ def point_to_plane_icp(
     distance. Open3D's loops run on one thread (:func:`o3d_spectral.parallel.one_open3d_thread`):
     a result must repeat exactly; several ICPs may run side by side on the caller's
     threads, as Open3D's ICP releases the GIL.
+
+    ``cut_from`` (M, 3): the points of the cloud ``source`` was cut from (the ICP then
+    runs about their centroid, and its convergence test, on changes of the share of
+    points that correspond, counts that share out of their M), so that the ICP of a cut
+    holding every point that can correspond is the ICP of the whole cloud
+    (:func:`polish_within_reach`).
     """
     init = np.asarray(init, dtype=np.float64)
-    points = np.asarray(source.points)
+    points = np.asarray(source.points) if cut_from is None else cut_from
     centre = init[:3, :3] @ points.mean(axis=0) + init[:3, 3] if len(points) else np.zeros(3)
     moved = o3d.geometry.PointCloud(target).translate(-centre)  # a copy; normals unchanged
     to_centre = np.eye(4)
@@ -121,10 +136,22 @@ def point_to_plane_icp(
             max_distance,
             to_centre @ init,
             o3d.pipelines.registration.TransformationEstimationPointToPlane(),
+            convergence(len(points), len(source.points)),
         )
     transformation = np.array(result.transformation)
     transformation[:3, 3] += centre
     return transformation
+
+
+def convergence(whole: int, cut: int) -> o3d.pipelines.registration.ICPConvergenceCriteria:
+    """Open3D's default ICP convergence (30 iterations; changes of fitness and RMSE under
+    1e-6) for a cut of ``cut`` points out of ``whole``: Open3D reads the fitness as the
+    share of the source that corresponds, so the fitness threshold is scaled by
+    ``whole / cut`` to stop where the whole cloud's ICP stops."""
+    criteria = o3d.pipelines.registration.ICPConvergenceCriteria()
+    if cut and cut != whole:
+        criteria.relative_fitness *= whole / cut
+    return criteria
 
 
 def point_to_plane_refinement(
@@ -181,5 +208,42 @@ def refine(
         wide = point_to_plane_icp(sparse, target, option.wide_distance * voxel_size, init)
         widened = point_to_plane_refinement(sparse, target, voxel_size, wide, option.distance)
         start = widened if fitness(widened) > fitness(plain) else plain
-    refined = point_to_plane_refinement(source, target, voxel_size, start, option.distance)
+    refined = polish_within_reach(source, target, tree, option.distance * voxel_size, start)
     return init if fitness(refined) <= GUARD_SHARE * fitness(init) else refined
+
+
+def polish_within_reach(
+    source: o3d.geometry.PointCloud,
+    target: o3d.geometry.PointCloud,
+    tree: cKDTree,
+    max_distance: float,
+    init: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`point_to_plane_icp` of ``source`` from ``init`` (4, 4), run on the source's
+    points within ``(1 + REACH) * max_distance`` (metres) of the target there (``tree``,
+    a KD-tree of the target's points): the same transformation as on the whole source, at
+    the cost of the points that can correspond.
+
+    Between two scans that share a fifth of their surface, four fifths of the source
+    never find a point of the target within ``max_distance``, and Open3D's ICP searches
+    for one at each of its 30 iterations. A point left out could only come to correspond
+    if the ICP moved it by more than :data:`REACH` times ``max_distance``: the cut is
+    checked once the ICP has run, and where the pose moved a point left out that far (a
+    pose sliding away from a wrong start), the ICP runs again on the whole source. The
+    ICP runs about the whole source's centroid and stops where the whole source's would
+    (:func:`convergence`).
+    """
+    points = np.asarray(source.points)
+    reach = REACH * max_distance
+    posed = points @ init[:3, :3].T + init[:3, 3]
+    distances, _ = tree.query(posed, distance_upper_bound=max_distance + reach)
+    near = np.isfinite(distances)
+    if near.all():
+        return point_to_plane_icp(source, target, max_distance, init)
+    cut = source.select_by_index(np.flatnonzero(near))
+    polished = point_to_plane_icp(cut, target, max_distance, init, cut_from=points)
+    out = points[~near]
+    moved = out @ (polished[:3, :3] - init[:3, :3]).T + (polished[:3, 3] - init[:3, 3])
+    if np.einsum("ij,ij->i", moved, moved).max() >= reach * reach:
+        return point_to_plane_icp(source, target, max_distance, init)
+    return polished

@@ -521,6 +521,6 @@ def test_refinement_that_leaves_the_surface_keeps_the_law_pose(monkeypatch):
     off = wrong.copy()
     off[:3, 3] += [90.0, 0.0, 0.0]  # what the ICP once returned
     monkeypatch.setattr(refinement, "point_to_plane_refinement", lambda *args: off)
-    monkeypatch.setattr(refinement, "point_to_plane_icp", lambda *args: off)
+    monkeypatch.setattr(refinement, "point_to_plane_icp", lambda *args, **kwargs: off)
     kept = refine(source, target, VOXEL, wrong, o3d_spectral.RefinementOption())
     np.testing.assert_array_equal(kept, wrong)

@@ -1,0 +1,67 @@
+"""The final polish (o3d_spectral.refinement): the ICP cut to the points that can correspond."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+from scipy.spatial import cKDTree
+
+from o3d_spectral import refinement
+from o3d_spectral.harness.real import load_cases
+from o3d_spectral.refinement import REACH, point_to_plane_icp, polish_within_reach
+from o3d_spectral.spectra import so3
+
+VOXEL = 0.005
+DISTANCE = 0.4 * VOXEL  # the polish's correspondence distance
+
+
+@pytest.fixture(scope="module")
+def scans():
+    """Dragon scans 72 degrees apart (a fifth of their surface shared), target normals."""
+    case = load_cases(["dragon_72"])[0]
+    target = o3d.geometry.PointCloud(case.target)
+    target.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2 * VOXEL, max_nn=30))
+    return case.source, target, case.T_gt
+
+
+def turned(pose: np.ndarray, degrees: float) -> np.ndarray:
+    """``pose`` (4, 4) turned by ``degrees`` about an oblique axis through the origin."""
+    axis = np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])
+    out = pose.copy()
+    out[:3, :3] = so3.exp(np.deg2rad(degrees) * axis) @ pose[:3, :3]
+    return out
+
+
+def counted_icp(monkeypatch) -> list:
+    """The cut (or whole) point counts of each ICP :func:`polish_within_reach` runs."""
+    calls = []
+
+    def icp(source, target, max_distance, init, cut_from=None):
+        calls.append(len(source.points))
+        return point_to_plane_icp(source, target, max_distance, init, cut_from)
+
+    monkeypatch.setattr(refinement, "point_to_plane_icp", icp)
+    return calls
+
+
+def test_the_cut_polish_is_the_whole_sources_icp_to_the_bit(scans, monkeypatch):
+    source, target, truth = scans
+    start = turned(truth, 1.0)
+    whole = point_to_plane_icp(source, target, DISTANCE, start)
+    calls = counted_icp(monkeypatch)
+    cut = polish_within_reach(source, target, cKDTree(np.asarray(target.points)), DISTANCE,
+                              start)
+    np.testing.assert_array_equal(cut, whole)
+    assert len(calls) == 1 and calls[0] < len(source.points) / 2  # most of the scan left out
+
+
+def test_a_pose_that_moves_a_point_left_out_beyond_reach_is_polished_whole(scans, monkeypatch):
+    source, target, truth = scans
+    start = turned(truth, 8.0)  # the ICP moves the scan's far end by more than the reach
+    whole = point_to_plane_icp(source, target, DISTANCE, start)
+    moved = np.asarray(source.points) @ (whole[:3, :3] - start[:3, :3]).T
+    assert np.max(np.linalg.norm(moved + whole[:3, 3] - start[:3, 3], axis=1)) > REACH * DISTANCE
+    calls = counted_icp(monkeypatch)
+    cut = polish_within_reach(source, target, cKDTree(np.asarray(target.points)), DISTANCE,
+                              start)
+    np.testing.assert_array_equal(cut, whole)
+    assert calls[-1] == len(source.points)  # run again on the whole scan
