@@ -1,9 +1,11 @@
-"""Evaluation past one process (issue 20): Dask clusters, shards, concurrent sessions in one
+"""Evaluation past one process: Dask clusters, shards, concurrent sessions in one
 run folder, older run folders, and the peers from other packages."""
 
+import gc
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -351,3 +353,22 @@ def test_interrupted_eval_stops_with_one_line_and_status_130(suite_dir, tmp_path
     assert len(stderr.strip().splitlines()) == 1 and "interrupted" in stderr, stderr
     time.sleep(1.0)
     assert not [pid for pid in processes if _alive(pid)]
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_an_interrupt_dropped_by_a_finaliser_is_still_flagged():
+    """Python drops a ``KeyboardInterrupt`` raised inside a finaliser; the pool's wait for
+    rows reads the flag instead, so that Ctrl-C is never lost."""
+    from o3d_spectral.harness.executors import interrupt_flag
+
+    class Finalised:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while a finaliser runs
+            for _ in range(1000):  # the handler runs between bytecodes, here
+                pass
+
+    with interrupt_flag() as flag:
+        Finalised()  # the interrupt raised in __del__ is dropped ("Exception ignored")
+        gc.collect()
+        assert flag.is_set()  # reached: nothing was raised here
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

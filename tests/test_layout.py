@@ -1,4 +1,4 @@
-"""The package stays readable in one pass: small modules, short functions (issue 16).
+"""The package stays readable in one pass: small modules, short functions.
 
 Function length counts code lines, not the docstring: a docstring that teaches is welcome.
 """

@@ -24,17 +24,19 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from multiprocessing import get_context
 from pathlib import Path
 
 from o3d_spectral import _extras
 
-__all__ = ["SINGLE_THREAD", "dask_cluster", "local_pool", "require_distributed"]
+__all__ = ["SINGLE_THREAD", "dask_cluster", "interrupt_flag", "local_pool", "require_distributed"]
 
 SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 #: How often (seconds) a pool worker checks that the process that started it is alive.
 PARENT_POLL = 0.5
+#: How often (seconds) the pool's parent checks for an interrupt while it waits for rows.
+INTERRUPT_POLL = 0.2
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
@@ -105,14 +107,39 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
 
 
 @contextlib.contextmanager
+def interrupt_flag() -> Iterator[threading.Event]:
+    """An event set by Ctrl-C (SIGINT) while the block runs, beside Python's
+    ``KeyboardInterrupt``: Python drops an exception raised where it cannot propagate (a
+    finaliser, a weak-reference callback, running when the signal arrives), and the
+    interrupt must not be lost with it. Only where Ctrl-C raises ``KeyboardInterrupt``
+    (the main thread, Python's own handler); the handler is restored after."""
+    flag = threading.Event()
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield flag
+        return
+
+    def interrupted(signum, frame):
+        flag.set()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, interrupted)
+    try:
+        yield flag
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@contextlib.contextmanager
 def local_pool(
     workers: int, initializer: Callable, plugins: tuple[str, ...]
 ) -> Iterator[Callable[[Callable, Sequence], Iterator[dict]]]:
     """A pool of ``workers`` spawned single-threaded processes (each calls
     ``initializer(plugins)`` first); yields ``submit(run, tasks)``, an iterator of the rows
     of ``run(task)`` as they complete. The workers end with this process, even killed
-    (:func:`_end_with_parent`), and ignore Ctrl-C; on an interrupt or any error the
-    queued tasks are dropped and the workers ended at once."""
+    (:func:`_end_with_parent`), and ignore Ctrl-C; on an interrupt (raised, or only
+    flagged: :func:`interrupt_flag`) or any error the queued tasks are dropped and the
+    workers ended at once."""
     with _single_threaded_children():
         pool = ProcessPoolExecutor(
             max_workers=workers,
@@ -122,11 +149,21 @@ def local_pool(
         )
 
     def submit(run: Callable, tasks: Sequence) -> Iterator[dict]:
-        for future in as_completed([pool.submit(run, task) for task in tasks]):
-            yield future.result()
+        pending = [pool.submit(run, task) for task in tasks]
+        while pending:
+            wait(pending, timeout=INTERRUPT_POLL, return_when=FIRST_COMPLETED)
+            if interrupt.is_set():
+                raise KeyboardInterrupt
+            done, rest = [], []
+            for future in pending:  # each read once: one finishing now waits its turn
+                (done if future.done() else rest).append(future)
+            pending = rest
+            for future in done:
+                yield future.result()
 
     try:
-        yield submit
+        with interrupt_flag() as interrupt:
+            yield submit
     except BaseException:
         _terminate(pool)
         raise
