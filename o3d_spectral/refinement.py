@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from .io.cloud import extent
-from .io.rows import bounds
+from .io.rows import bounds, lengths
 from .options import RefinementOption
 from .parallel import one_open3d_thread
 
@@ -244,6 +244,6 @@ def polish_within_reach(
     polished = point_to_plane_icp(cut, target, max_distance, init, cut_from=points)
     out = points[~near]
     moved = out @ (polished[:3, :3] - init[:3, :3]).T + (polished[:3, 3] - init[:3, 3])
-    if np.einsum("ij,ij->i", moved, moved).max() >= reach * reach:
+    if lengths(moved).max() >= reach:
         return point_to_plane_icp(source, target, max_distance, init)
     return polished

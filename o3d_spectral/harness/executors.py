@@ -149,15 +149,11 @@ def local_pool(
         )
 
     def submit(run: Callable, tasks: Sequence) -> Iterator[dict]:
-        pending = [pool.submit(run, task) for task in tasks]
+        pending = {pool.submit(run, task) for task in tasks}
         while pending:
-            wait(pending, timeout=INTERRUPT_POLL, return_when=FIRST_COMPLETED)
+            done, pending = wait(pending, timeout=INTERRUPT_POLL, return_when=FIRST_COMPLETED)
             if interrupt.is_set():
                 raise KeyboardInterrupt
-            done, rest = [], []
-            for future in pending:  # each read once: one finishing now waits its turn
-                (done if future.done() else rest).append(future)
-            pending = rest
             for future in done:
                 yield future.result()
 
