@@ -35,49 +35,58 @@ __all__ = [
 class SpectralRegistrationOption:
     """How the clouds are represented and how the control law moves.
 
+    :meth:`paper` gives the paper's choices; ``bandwidth`` trades rotation resolution for
+    time; ``max_grid_memory`` bounds what one call may allocate.
+
     Attributes
     ----------
-    bandwidth : int
-        ``B``: spherical harmonics of degree ``0 <= l < B`` (the paper's sum, its
-        ``B = 16``); the EGI grid is ``2B x 2B``. See ``docs/conventions.md``.
-    lambda_t : float
-        Translation gain in (0, 1]: fraction of the phase-correlation shift applied per
-        iteration (eq. control_law).
-    lambda_r : float
-        Rotation gain in (0, 1]: fraction of the rotation step applied per iteration. The
-        gradient is divided by the correlation's curvature, so the step is an angle and
-        one gain fits every cloud.
-    preconditioned : bool
-        Divide the rotation gradient by the local curvature axis by axis (a damped Newton
-        step) rather than by its mean (the paper's plain gradient, scaled).
-    max_rotation_step : float
-        Largest rotation applied in one iteration, radians.
-    egi_binned : bool
-        Build the EGI as the paper's histogram on the ``2B x 2B`` grid (True) or project
-        the normals exactly (False, default; no binning error).
-    egi_smoothing : tuple of float
-        Widths (radians) of the heat kernel smoothing the EGI, coarse to fine. A wide
-        kernel gives the rotation correlation a wide basin; a narrow one a sharp peak.
-        The law starts with the first and moves to the next when the rotation step falls
-        below ``smoothing_switch``.
-    smoothing_switch : float
-        Rotation step (radians) below which the next, finer smoothing is used.
-    egi_voxel_size : float or None
-        Cell (metres) in which normals are averaged before the EGI is built;
-        ``voxel_size / 4`` when None.
-    voxel_weighting : {"trilinear", "count", "binary"}
-        How points fill the voxel grid; ``"binary"`` is the paper's.
-    peak_width : float
-        Width of the Gaussian window of the phase correlation, voxels (sub-voxel fit).
-    translation_window : int or None
-        After the first, global, phase correlation of a climb, correlate against a block
-        of the fixed grid around where the last correlation put the moving cloud, with
-        this many voxels of margin on each side (used only where it makes the FFT under
-        half as large: a small object in a large scene). None: the whole fixed grid every
-        iteration (the paper).
-    max_grid_memory : float
-        Largest memory (bytes) one voxel grid's FFT buffers, or the global search's SO(3)
-        correlation grid, may take.
+    bandwidth : int, default 16
+        ``B``, 2 to 128: spherical harmonics of degree ``0 <= l < B`` (the paper's
+        ``B = 16``). The EGI grid is ``2B x 2B``, the global search's rotation grid
+        ``(4B)^3``; time and memory grow with ``B^3``. See ``docs/conventions.md``.
+    lambda_t : float, default 0.5
+        Translation gain in (0, 1]: the fraction of the phase-correlation shift applied
+        per iteration (the paper's eq. control_law).
+    lambda_r : float, default 0.5
+        Rotation gain in (0, 1]: the fraction of the rotation step applied per iteration.
+        The gradient is divided by the correlation's curvature, so the step is an angle
+        and one gain fits every cloud.
+    preconditioned : bool, default True
+        True: divide the rotation gradient by the curvature axis by axis (a damped Newton
+        step). False: by its mean (the paper's plain gradient, scaled).
+    max_rotation_step : float, default 0.35
+        Largest rotation applied in one iteration, radians, > 0.
+    egi_binned : bool, default False
+        True: the EGI is the paper's histogram on the ``2B x 2B`` grid. False: the
+        normals are projected onto the harmonics exactly (no binning error).
+    egi_smoothing : tuple of float, default (0.3, 0.1)
+        Widths of the heat kernel smoothing the EGI, radians, >= 0, coarse to fine, at
+        least one (a single number is accepted). A wide kernel gives the rotation
+        correlation a wide basin, a narrow one a sharp peak; the law starts at the first
+        width and moves on when its rotation step falls below ``smoothing_switch``.
+    smoothing_switch : float, default 0.05
+        Rotation step, radians, > 0, below which the law moves to the next, finer
+        smoothing.
+    egi_voxel_size : float or None, default None
+        Cell, metres, > 0, in which normals are averaged before the EGI is built; None:
+        ``voxel_size / 4``.
+    voxel_weighting : {"trilinear", "count", "binary"}, default "trilinear"
+        How points fill the voxel grid: each point shared among its 8 nearest voxel
+        centres (continuous in the points' positions, needed for sub-voxel shifts), the
+        number of points per voxel, or 1 for every occupied voxel (the paper's).
+    peak_width : float, default 1.0
+        Width, voxels, > 0, of the Gaussian window fitted to the phase-correlation peak
+        for the sub-voxel shift.
+    translation_window : int or None, default 8
+        Margin, voxels, >= 2: after a climb's first, whole-grid phase correlation, only
+        the block of the fixed grid this far around where the last correlation put the
+        moving cloud is correlated. Applied only where it makes the FFT under half as
+        large (a small object in a large scene). None: the whole fixed grid every
+        iteration (the paper's).
+    max_grid_memory : float, default 2 GiB
+        Bytes, > 0: the most one voxel grid's FFT buffers, or the global search's SO(3)
+        correlation grid, may take; a call that needs more raises ``ValueError`` before
+        any work. Raise it for fine voxels on large scenes.
     """
 
     bandwidth: int = 16
@@ -129,26 +138,30 @@ class SpectralRegistrationOption:
 class CloudOption:
     """How the input clouds are read: their normals and where their sensors were.
 
+    Change it when the clouds carry no normals and their sensors' positions are known
+    (``camera_location``, ``source_camera_location``), or to turn back-face culling off
+    (``target_viewpoint=None``).
+
     Attributes
     ----------
-    normal_radius : float or None
-        Search radius (metres) for normals estimated when a cloud has none;
-        ``2.5 * voxel_size`` when None.
-    camera_location : tuple of 3 float or None
-        Where the sensor was (metres, in the clouds' frame), to orient normals estimated
-        (or oriented again) for the target, and for the source unless
-        ``source_camera_location`` is given.
-    source_camera_location : tuple of 3 float or None
-        Where the source's sensor was (metres, source frame), when it differs from the
-        target's (two scans from two places).
-    target_viewpoint : "auto", tuple of 3 float, or None
-        Where the sensor that saw the target was (metres, target frame). When set, only
-        the source points whose normals face it at the current pose take part (back-face
-        culling), so that the back of a model is not matched against a one-sided scan.
-        ``"auto"``: the origin, when at least 90% of the target's normals face it (a
-        single view in its sensor's frame), else far along the direction of a view
-        recognised from its normals and depth (:func:`o3d_spectral.io.normals.view_direction`),
-        else none; None: never cull.
+    normal_radius : float or None, default None
+        Search radius, metres, > 0, for the normals estimated when a cloud has none;
+        None: ``2.5 * voxel_size``.
+    camera_location : tuple of 3 float or None, default None
+        Where the sensor was, metres, in the clouds' frame: estimated (or re-oriented)
+        normals of the target, and of the source unless ``source_camera_location`` is
+        given, are turned towards it.
+    target_viewpoint : "auto", tuple of 3 float, or None, default "auto"
+        Where the sensor that saw the target was, metres, target frame. When set, only
+        the source points whose normals face it at the current pose take part
+        (back-face culling), so the back of a model is not matched against a one-sided
+        scan. ``"auto"``: the origin when at least 90% of the target's normals face it
+        (a single view in its sensor's frame), else far along the view direction
+        recognised from the normals and depth
+        (:func:`o3d_spectral.io.normals.view_direction`), else none. None: never cull.
+    source_camera_location : tuple of 3 float or None, default None
+        Where the source's sensor was, metres, source frame, when it differs from the
+        target's (two scans taken from two places).
     """
 
     normal_radius: float | None = None
@@ -179,82 +192,70 @@ class CloudOption:
 class GlobalSearchOption:
     """The search over all of SO(3) (:func:`o3d_spectral.registration_spectral_global`).
 
-    The rotation correlation is evaluated on a grid of ZYZ Euler angles by SO(3) Fourier
-    transforms; its ``hypotheses`` highest peaks are placed by phase correlation and
-    scored by that correlation's peak height; the ``climbs`` best are climbed by the law
-    for ``hypothesis_iterations`` and ranked again (peak height times EGI correlation);
-    the best is climbed on to convergence, and the best-scoring iterate of all the climbs
-    is returned (:mod:`o3d_spectral.search`).
+    The EGIs' rotation correlation is sampled on a grid of ZYZ Euler angles; its peaks
+    (and, between two scans, the shells' and the sweep's candidates) are placed by phase
+    correlation and scored by its peak height; the best is confirmed by a short ICP
+    (``confirm``) or else the ``climbs`` best are climbed by the law and the best-scoring
+    iterate is returned (``docs/method.md``). The defaults are the measured choice
+    (``docs/design-notes.md``): lower ``hypotheses``, ``climbs`` or ``sweep_rotations``
+    only to trade success for time, and set ``workers`` to share the machine.
 
     Attributes
     ----------
-    hypotheses : int
-        Peaks of the global correlation tried.
-    climbs : int
-        Hypotheses climbed after they have been located and scored.
-    hypothesis_iterations : int
-        Iterations of the law from each climbed hypothesis before they are ranked again.
-    egi_focus : bool
-        In a fixed cloud larger than the moving one (a scene), match the moving EGI
-        against the fixed cloud's normals around the places the first hypotheses put it
-        only, and add those correlations' peaks; each climb then matches only the fixed
+    hypotheses : int, default 32
+        Peaks of the rotation correlation placed, >= 2.
+    climbs : int, default 4
+        Placed hypotheses climbed by the law, 1 to ``hypotheses``.
+    hypothesis_iterations : int, default 12
+        Iterations of the law from each climbed hypothesis before they are ranked again,
+        >= 1.
+    egi_focus : bool, default True
+        In a fixed cloud larger than the moving one (a scene): also correlate the moving
+        EGI with the fixed cloud's normals around the places the first hypotheses put
+        it, add those correlations' peaks, and let each climb match only the fixed
         normals near its own points. No effect when the clouds are about one size.
-    focus_places : int
-        With ``egi_focus``: how many places the EGI is focused on, the best distinct
-        places (over the moving cloud's radius apart) where the first hypotheses put it.
-    scene_hypotheses : int
-        In a scene (a fixed cloud over 1.5 times the moving one's radius,
-        :meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`) searched with
-        ``egi_focus``: how many of the whole EGI's highest peaks are placed over the whole
-        scene. They only have to find the places the EGI is focused on, where the
-        focused EGI's ``hypotheses`` peaks are placed; each costs a phase correlation on
-        the whole scene's grid (about 13 ms on a tabletop). 16 succeed on cluttered
-        scenes as often as 32 in less time, and more often on a real RGB-D frame, where
-        more whole-scene peaks place the object on the clutter; 8 are too few.
-    search_visibility : bool
-        Against a single view (``CloudOption.target_viewpoint``): correlate the fixed EGI
-        with the moving one as the sensor would see it at each rotation (weighted by the
-        cosine of incidence, normalised over its visible part) rather than with the whole
-        moving EGI.
-    search_samples : int or None
-        Samples of each Euler angle in the grid (``4 * bandwidth`` when None: steps of
-        180 / (2B) degrees in alpha and gamma); at least ``2 * bandwidth - 1``.
-    shell_hypotheses : int
-        For two single views (two scans): peaks of the correlation of the voxel grids'
-        spectra on spherical shells (:mod:`o3d_spectral.spectra.shells`) tried besides the EGI's;
-        0 tries none.
-    sweep_rotations : int
-        For two single views: rotations spread evenly over SO(3) (this many over the
-        whole of it; those that keep the two sensors within 110 degrees are tried) placed
-        by phase correlation on a coarse grid, the best 16 then as the other candidates
-        (:func:`o3d_spectral.search.swept_rotations`); 0 tries none.
-    confirm : bool
-        Confirm the best placed hypothesis by a short point-to-plane ICP and its fit
-        (:mod:`o3d_spectral.confirmation`) and, where it is clearly right, skip the climbs:
-        the search's effort then follows the difficulty of the case. False: always climb.
-    peak_ascent : bool
-        Between two single views, turn the best pose to where the phase correlation's
-        peak is highest (:func:`o3d_spectral.ascent.peak_ascent`) before the polish: the
-        law's EGI term, which sees only what each sensor saw, leaves it 8-20 degrees off
-        there. Not elsewhere: on RGB-D crops of objects outside the tuning set it turned
-        right poses of a box and a can half a turn.
-    coarse_placements : int
-        For two single views (two scans: :meth:`o3d_spectral.SpectralStepper.two_views`),
-        the candidates (the EGI's, the shells' and the sweep's, about 80) are first placed
-        on grids of twice the voxel (an eighth of the FFT) and only this many, the
-        highest, are placed at full resolution; 0 places every one at full resolution.
-        The coarse grid ranked a candidate within 10 degrees of the truth first or second
-        on every dragon scan pair that had one (31 of 48); 16 leaves room for the near
-        ties of a symmetric shape (a box's half turns). Against 32: the dragon pairs 43
-        of 50 registered (42), synthetic view pairs of the twelve models 23 of 24 (22),
-        23% less time. Not for a model against a view (it loses occluded views) or a
-        scene (the coarse grid ranks clutter above the object).
-    workers : int or None
-        Threads the independent parts of the search are spread over (the placements and
-        the sweep's, the confirmation's polishes, the climbs, the ascent's coarse starts);
-        every core when None, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when that
-        is set). The result is the same to the bit whatever the count
-        (:mod:`o3d_spectral.parallel`).
+    focus_places : int, default 3
+        With ``egi_focus``: the number of places the EGI is focused on, >= 1, the best
+        distinct places (over the moving cloud's radius apart) of the first hypotheses.
+    scene_hypotheses : int, default 16
+        In a scene (a fixed cloud over 1.5 times the moving one's radius) searched with
+        ``egi_focus``: the whole EGI's highest peaks placed over the whole scene to find
+        the focus places, >= 1. Each costs a phase correlation on the whole scene's grid.
+    search_visibility : bool, default True
+        Against a single view (``CloudOption.target_viewpoint``): correlate the fixed
+        EGI with the moving one as the sensor would see it at each rotation (weighted by
+        the cosine of incidence, normalised over its visible part). False: with the
+        whole moving EGI.
+    search_samples : int or None, default None
+        Samples of each Euler angle in the rotation grid, >= ``2 * bandwidth - 1``;
+        None: ``4 * bandwidth`` (steps of 180 / (2B) degrees in alpha and gamma). Memory
+        grows with its cube (:meth:`check_memory`).
+    shell_hypotheses : int, default 32
+        Between two single views (two scans): peaks of the correlation of the voxel
+        grids' spectra on spherical shells tried besides the EGI's, >= 0; 0 tries none.
+    sweep_rotations : int, default 1000
+        Between two single views: rotations spread evenly over SO(3), >= 0 (those that
+        keep the two sensors within 110 degrees are tried), placed on a coarse grid, the
+        best 16 kept as more candidates; 0 tries none.
+    confirm : bool, default True
+        Polish the best placed hypothesis by a short point-to-plane ICP and, where its
+        fit shows it clearly right, return it without the climbs (not in a scene), so
+        easy cases end early. False: always climb.
+    peak_ascent : bool, default True
+        Between two single views: turn the best pose to where the phase correlation's
+        peak is highest before the polish (the law's EGI term sees only what each
+        sensor saw and leaves such poses degrees off). Not applied to a model against a
+        view or a scene.
+    coarse_placements : int, default 16
+        Between two single views: the candidates (about 80) are first placed on a grid
+        of twice the voxel (an eighth of the FFT) and only this many, the highest, are
+        placed at full resolution, >= 0; 0 places every one at full resolution. Not
+        applied to a model against a view or a scene.
+    workers : int or None, default None
+        Threads the independent parts of the search run on, >= 1 (placements, the
+        sweep's batches, the confirmation's polishes, the climbs, the ascent's starts);
+        None: every core, as Open3D's RANSAC (at most ``OMP_NUM_THREADS`` when set). The
+        result is the same to the bit whatever the count.
     """
 
     hypotheses: int = 32
@@ -311,22 +312,24 @@ class GlobalSearchOption:
 
 @dataclass(frozen=True)
 class RefinementOption:
-    """The point-to-plane ICP polish of the law's final pose (:mod:`o3d_spectral.refinement`).
+    """The point-to-plane ICP polish of the law's final pose.
 
-    Open3D's point-to-plane ICP on the full clouds with correspondences up to
-    ``distance`` voxels (Open3D's global-registration tutorial uses 0.4), optionally after
-    a first, wider pass; the result that fits better is kept, unless it slid off the
-    surface (it keeps at most half of the law's inliers), when the law's pose is returned.
+    Open3D's point-to-plane ICP on the full clouds, with correspondences up to
+    ``distance`` voxels, optionally also after a first, wider pass; the result with the
+    higher fitness at ``distance`` is kept, unless it slid off the surface (keeping at
+    most half of the law's inliers), when the law's pose is returned. Pass
+    ``refinement=None`` to the registration calls for the law's pose alone.
 
     Attributes
     ----------
-    distance : float
-        Correspondence distance of the polish, voxels.
-    wide_distance : float or None
-        Also run the polish after a first ICP with correspondences up to this many voxels
-        (a wider basin: a mug a few degrees off about its axis, whose handle lies beyond
-        0.4 voxel), and keep whichever has the higher fitness at ``distance``. None: the
-        polish alone (the tutorial's, as the harness' FPFH baselines run it).
+    distance : float, default 0.4
+        Correspondence distance of the polish, voxels, > 0 (Open3D's global-registration
+        tutorial uses 0.4).
+    wide_distance : float or None, default 1.0
+        Correspondence distance, voxels, > 0, of a first ICP pass whose result is
+        polished as well: a wider basin, for poses a few degrees off (a mug's handle
+        beyond 0.4 voxel). None: the polish alone (as the harness's FPFH baselines run
+        it).
     """
 
     distance: float = 0.4
@@ -342,18 +345,19 @@ class SpectralConvergenceCriteria:
     """When the control law stops (eq. updaterule).
 
     The paper stops when ``||grad_glob T|| + ||grad C_r|| < eps_g``, adding metres to
-    correlation units. Here each term has its own tolerance in its own unit: iterations
-    stop, at the finest EGI smoothing level, when the full translation correction is below
-    ``translation_tolerance`` *and* the full rotation step is below ``rotation_tolerance``.
+    correlation units. Here each term has its own tolerance in its own unit: the law
+    stops, at the finest EGI smoothing, when the full translation correction is below
+    ``translation_tolerance`` and the full rotation step below ``rotation_tolerance``,
+    or after ``max_iteration`` iterations.
 
     Attributes
     ----------
-    max_iteration : int
-        Iterations at most.
-    translation_tolerance : float or None
-        Metres; ``0.02 * voxel_size`` when None.
-    rotation_tolerance : float
-        Radians.
+    max_iteration : int, default 100
+        Iterations at most, >= 1.
+    translation_tolerance : float or None, default None
+        Metres, > 0; None: ``0.02 * voxel_size``.
+    rotation_tolerance : float, default 1e-3
+        Radians, > 0.
     """
 
     max_iteration: int = 100
