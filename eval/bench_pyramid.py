@@ -36,14 +36,14 @@ import numpy as np
 import o3d_spectral
 from o3d_spectral import run as runs
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
-from o3d_spectral.search import (
-    PLACEMENT_SPAN,
-    egi_rotations,
+from o3d_spectral.search.candidates import (
+    egi_candidates,
     placed_peaks,
-    shell_rotations,
+    shell_candidates,
     span_factor,
-    swept_rotations,
+    swept_candidates,
 )
+from o3d_spectral.search.placement import PLACEMENT_SPAN
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.models import load_model, model_names
@@ -65,13 +65,14 @@ def first_good_rank(task: speed.Task, within: float) -> dict[float, int] | None:
     run = runs.start(task.source, task.target, task.voxel, np.eye(4), None, None, None)
     stepper, moving = run.stepper, run.moving
     search = o3d_spectral.GlobalSearchOption(workers=1)
-    candidates = egi_rotations(stepper, moving, search)
+    candidates = egi_candidates(stepper, moving, search)
     factor = 1.0
-    if stepper.two_views(moving):
-        candidates += (shell_rotations(stepper, moving, search.shell_hypotheses)
-                       + swept_rotations(stepper, moving, search.sweep_rotations))
-        factor = span_factor(stepper, moving, PLACEMENT_SPAN)
-    rotations = [R for R, _ in candidates]
+    if run.situation.two_scans:
+        candidates += (shell_candidates(stepper.target_points, moving.points,
+                                        search.shell_hypotheses)
+                       + swept_candidates(stepper, moving, search.sweep_rotations))
+        factor = span_factor(stepper.voxel_size, moving.radius, PLACEMENT_SPAN)
+    rotations = [c.rotation for c in candidates]
     errors = np.array([task.score(so3.about_pivot(R, np.zeros(3), moving.centroid))[0]
                        for R in rotations])
     good = errors <= within

@@ -92,14 +92,11 @@ class Climb:
     converged : bool
     predicted : ndarray, shape (3,) or None
         Where the last phase correlation put the centroid (metres); None before the first.
-    stepper : SpectralStepper or None
-        The stepper this climb runs against when not the registration's own (a focused
-        EGI, :mod:`o3d_spectral.search`).
     scores : list of float
         :func:`pose_score` of the iterates scored so far (:meth:`best_iterate`).
     egi_scored : bool
         Whether the EGI correlation counts in the score (not for two views:
-        :meth:`o3d_spectral.SpectralStepper.two_views`).
+        :class:`o3d_spectral.search.situation.Kind`).
     """
 
     centroid: NDArray[np.float64]
@@ -109,7 +106,6 @@ class Climb:
     history: list[IterationRecord] = field(default_factory=list)
     converged: bool = False
     predicted: NDArray[np.float64] | None = None
-    stepper: SpectralStepper | None = None
     scores: list[float] = field(default_factory=list)
     egi_scored: bool = True
 
@@ -149,7 +145,7 @@ def climb(
     Parameters
     ----------
     stepper : SpectralStepper
-        Against its ``state.stepper`` when set, this one otherwise.
+        The fixed cloud's spectra the law climbs against.
     moving : MovingCloud
     state : Climb
         Updated in place: pose, level, history, ``converged``.
@@ -162,7 +158,6 @@ def climb(
     start : float
         ``time.perf_counter()`` at the start of the registration.
     """
-    stepper = state.stepper or stepper
     for _ in range(iterations):
         if state.converged:
             return

@@ -22,7 +22,7 @@ from .parallel import one_open3d_thread
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
     "polish_within_reach", "convergence", "REACH",
-    "representatives", "SCORE_CELL", "DENSE_PER_VOXEL",
+    "representatives", "SCORE_CELL", "DENSE_PER_VOXEL", "with_normals",
 ]
 
 #: The polished pose is rejected when it keeps at most this share of the unpolished
@@ -247,3 +247,16 @@ def polish_within_reach(
     if lengths(moved).max() >= reach:
         return point_to_plane_icp(source, target, max_distance, init)
     return polished
+
+
+def with_normals(
+    target: o3d.geometry.PointCloud, points: NDArray[np.float64], normals: NDArray[np.float64]
+) -> o3d.geometry.PointCloud:
+    """``target``, or, when it has no normals, a cloud of ``points`` (N, 3, metres) with
+    ``normals`` (N, 3): the fixed cloud's down-sampled points and the normals estimated
+    for it (:attr:`o3d_spectral.SpectralStepper.target_normal_points`, ``target_normals``)."""
+    if target.has_normals():
+        return target
+    fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    fixed.normals = o3d.utility.Vector3dVector(normals)
+    return fixed

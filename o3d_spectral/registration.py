@@ -3,7 +3,8 @@
 - :func:`registration_spectral`: the paper's control law from ``init`` (a local rotation
   search, the translation found globally), like ``registration_icp``;
 - :func:`registration_spectral_global`: the rotation searched over all of SO(3) first
-  (:mod:`o3d_spectral.search`), like ``registration_fgr_based_on_feature_matching``.
+  (:class:`o3d_spectral.search.GlobalSearch`), like
+  ``registration_fgr_based_on_feature_matching``.
 
 Both prepare the fixed cloud's spectra (:class:`o3d_spectral.SpectralStepper`) and the
 moving cloud, run the law (:mod:`o3d_spectral.law`), polish the pose
@@ -15,9 +16,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import centring, confirmation
-from .ascent import best_ascent
-from .io.cloud import to_legacy
 from .law import Climb
 from .options import (
     CloudOption,
@@ -27,9 +25,10 @@ from .options import (
     SpectralRegistrationOption,
 )
 from .result import SpectralRegistrationResult
-from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start, with_normals
-from .search import DISTINCT_ANGLE, climbed, confidence, ranked_hypotheses, sweeps
-from .spectra import so3
+from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start
+from .search import GlobalSearch, Ranking
+from .search.confirmation import Confirmation
+from .search.poses import confidence
 from .stages import StageClock
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global"]
@@ -154,21 +153,21 @@ def registration_spectral_global(
        whole of SO(3) by SO(3) Fourier transforms, its highest peaks (and, between two
        scans, rotations from the grids' spectra) placed by 3D phase correlation and
        ranked by that correlation's peak height; in a scene, searched again around the
-       best places (:func:`o3d_spectral.search.ranked_hypotheses`);
+       best places (:meth:`o3d_spectral.search.GlobalSearch.rank`);
     3. **confirm**: the best placed pose polished by a short ICP; where it clearly fits
        better than any distinct alternative the search stops here
-       (:mod:`o3d_spectral.confirmation`, ``result.confirmed``);
+       (:mod:`o3d_spectral.search.confirmation`, ``result.confirmed``);
        between two scans, the rotations of a sweep of SO(3) are placed (**sweep**) and
        the best confirmed again before any climb;
     4. **climbs**: otherwise the best few are climbed by the paper's control law and
        ranked again, the best climbed on to convergence
-       (:func:`o3d_spectral.search.climbed`);
+       (:meth:`o3d_spectral.search.GlobalSearch.climb`);
     5. **ascent**: between two scans, the best pose turned to where the phase
-       correlation's peak is highest (:mod:`o3d_spectral.ascent`);
+       correlation's peak is highest (:mod:`o3d_spectral.search.ascent`);
     6. **polish**: the point-to-plane refinement and Open3D's scoring; where the best
        placed pose, as the confirmation polished it, lies clearly closer to the target
        than the result, it is polished and returned instead
-       (:func:`o3d_spectral.confirmation.closer`).
+       (:func:`o3d_spectral.search.confirmation.closer`).
 
     Against a single view the search correlates the view with the model as the sensor
     would see it; against a whole scene it focuses on the scene's normals where the
@@ -215,111 +214,76 @@ def registration_spectral_global(
     clock = StageClock()
     with clock.stage("prepare"):
         run = start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
-    memo: dict = {}  # candidates, placements and fits, kept for the second ranking
+    finder = GlobalSearch(run.stepper, run.moving, run.target, search, run.situation)
     with clock.stage("candidates"):
-        ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, sweep=False,
-                                          memo=memo)
-    confirmed = _confirmation(run, search, ranked, clock, memo)
-    if confirmed is None and sweeps(run.stepper, run.moving, search):
-        with clock.stage("sweep"):  # two views: the sweep of SO(3) joins the candidates
-            ranked, focus = ranked_hypotheses(run.stepper, run.moving, search, memo=memo)
-        confirmed = _confirmation(run, search, ranked, clock, memo)
+        ranking = finder.rank()
+    confirmed = _confirmed(finder, ranking, clock)
+    if confirmed is None and finder.sweeps:
+        with clock.stage("sweep"):  # two scans: the sweep of SO(3) joins the candidates
+            ranking = finder.rank(sweep=True)
+        confirmed = _confirmed(finder, ranking, clock)
     if confirmed is not None:
         best, pose, result = _placed_result(run, confirmed)
     else:
-        best, pose, result = _searched(run, search, ranked, focus, clock)
+        best, pose, result = _searched(run, finder, ranking, clock)
     with clock.stage("polish"):
         result = finish(run, result, best, pose @ run.init, refinement,
                         max_correspondence_distance)
-        placed = None if confirmed is not None else _closer_placed(run, ranked, result, memo)
-        if placed is not None:  # the best placed pose lies clearly closer: returned instead
-            best, pose, result = _placed_result(run, placed)
-            result = finish(run, result, best, pose @ run.init, refinement,
-                            max_correspondence_distance)
+        if confirmed is None:  # the best placed pose, where it lies clearly closer
+            placed = finder.closer_placed(ranking, run.moving_pose(result.transformation))
+            if placed is not None:
+                best, pose, result = _placed_result(run, placed)
+                result = finish(run, result, best, pose @ run.init, refinement,
+                                max_correspondence_distance)
     result.stage_times = clock.times
     return result
 
 
-def _confirmation(
-    run: Run, search: GlobalSearchOption, ranked: list, clock: StageClock, memo: dict
-) -> confirmation.Confirmation | None:
-    """The confirmation of the best of ``ranked`` (:mod:`o3d_spectral.confirmation`), or
-    None where it does not apply or does not confirm. ``memo`` keeps the fixed cloud and
-    the fits made, for a second confirmation after the sweep."""
-    if not (search.confirm and confirmation.applies(run.stepper, run.moving)):
+def _confirmed(finder: GlobalSearch, ranking: Ranking, clock: StageClock) -> Confirmation | None:
+    """The confirmation of the best of ``ranking`` where it applies and confirms."""
+    if not finder.confirms:
         return None
     with clock.stage("confirm"):
-        if "fixed" not in memo:
-            memo["fixed"] = with_normals(to_legacy(run.target), run.stepper)
-        confirmed = confirmation.confirm(run.stepper, run.moving, memo["fixed"], ranked,
-                                         fits=memo.setdefault("fits", {}),
-                                         workers=search.workers)
+        confirmed = finder.confirm(ranking)
     return confirmed if confirmed.confirmed else None
 
 
 def _placed_result(
-    run: Run, confirmed: confirmation.Confirmation
+    run: Run, placed: Confirmation
 ) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
-    """The result of a call that returns its best placed hypothesis, polished
-    (:func:`o3d_spectral.confirmation.confirm`): its pose, with no climb;
-    ``result.confirmed`` as ``confirmed.confirmed``."""
+    """The result of a call that returns a placed hypothesis as the confirmation
+    polished it: its pose, with no climb; ``result.confirmed`` as ``placed.confirmed``."""
     result = SpectralRegistrationResult()
-    result.confirmed = confirmed.confirmed
-    pose = confirmed.transformation
-    result.hypotheses = [(pose @ run.init, confirmed.fit)]
-    result.confidence = confirmed.fit - confirmed.runner_up
-    result.rival_fit = confirmed.runner_up
+    result.confirmed = placed.confirmed
+    pose = placed.transformation
+    result.hypotheses = [(pose @ run.init, placed.fit)]
+    result.confidence = placed.fit - placed.runner_up
+    result.rival_fit = placed.runner_up
     return Climb(run.moving.centroid, converged=True), pose, result
 
 
-def _closer_placed(
-    run: Run, ranked: list, result: SpectralRegistrationResult, memo: dict
-) -> confirmation.Confirmation | None:
-    """The best placed hypothesis as the confirmation polished it, where it lies clearly
-    closer to the fixed cloud than ``result``'s pose (:func:`o3d_spectral.confirmation.closer`),
-    with that pose's fit as its rival's when it is distinct; None otherwise, or where no
-    confirmation measured it (a scene)."""
-    placed = memo.get("fits", {}).get(ranked[0].transformation(run.moving.centroid).tobytes())
-    if placed is None:
-        return None
-    pose = result.transformation
-    if run.offset is not None:  # to the frame the run works in, then the moving cloud's
-        pose = centring.shifted(pose, run.offset)
-    pose = pose @ np.linalg.inv(run.init)
-    returned = confirmation.fit(run.stepper, run.moving, memo["fixed"], pose, polish=False)
-    if not confirmation.closer(placed, returned):
-        return None
-    distinct = so3.rotation_angle(pose[:3, :3].T @ placed.pose[:3, :3]) > DISTINCT_ANGLE
-    return confirmation.Confirmation(placed.pose, placed.share,
-                                     returned.share if distinct else 0.0, confirmed=False)
-
-
 def _searched(
-    run: Run, search: GlobalSearchOption, ranked: list, focus: bool, clock: StageClock
+    run: Run, finder: GlobalSearch, ranking: Ranking, clock: StageClock
 ) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
-    """The climbs from the best placed hypotheses, the best climbed on to convergence, and
-    (between two views) the peak ascent: the best climb, the pose (4, 4, before
-    ``run.init``) and the result's search fields."""
-    tolerance = run.criteria.tolerances(run.stepper.voxel_size)
+    """The climbs from the best placed hypotheses and (between two scans) the peak
+    ascent: the best climb, the pose (4, 4, before ``run.init``) and the result's search
+    fields."""
     with clock.stage("climbs"):
-        iterations = min(search.hypothesis_iterations, run.criteria.max_iteration)
-        climbs = climbed(run.stepper, run.moving, search, ranked, focus, iterations=iterations,
-                         tolerance=tolerance, init=run.init, start=run.start)
-        best = climbs[0]
-        run.climb(best, run.criteria.max_iteration - len(best.history))
+        climbs = finder.climb(ranking, tolerance=run.criteria.tolerances(run.stepper.voxel_size),
+                              max_iteration=run.criteria.max_iteration, init=run.init,
+                              start=run.start)
     ranked_iterates = sorted((state.best_iterate() for state in climbs), key=lambda i: -i[0])
     result = SpectralRegistrationResult()
     result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked_iterates]
     result.confidence = confidence([(score, M) for M, score in result.hypotheses])
     _, pose, record = ranked_iterates[0]
     result.translation_peak = record.translation_peak
-    if search.peak_ascent and run.stepper.two_views(run.moving):
+    if finder.ascends:
         with clock.stage("ascent"):  # from the best of every climb's best
-            ascended = best_ascent(run.stepper, run.moving, [M for _, M, _ in ranked_iterates],
-                                   search.workers)
+            ascended = finder.ascend([M for _, M, _ in ranked_iterates])
             pose = ascended.transformation(run.moving.centroid)
             result.translation_peak = ascended.translation_peak
-    return best, pose, result
+    return climbs[0], pose, result
 
 
 for _call in (registration_spectral, registration_spectral_global):

@@ -28,12 +28,13 @@ from .options import (
     SpectralRegistrationOption,
 )
 from .prepared import PreparedSource
-from .refinement import near_pose, refine, representatives
+from .refinement import near_pose, refine, representatives, with_normals
 from .result import SpectralRegistrationResult
+from .search.situation import Situation, situation
 from .stepper import MovingCloud, SpectralStepper
 from .verification import verify
 
-__all__ = ["Run", "check_settings", "start", "finish", "with_normals", "DEFAULT_REFINEMENT",
+__all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
 
 #: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
@@ -46,7 +47,7 @@ REFINEMENT_MARGIN = 10.0
 @dataclass
 class Run:
     """What both calls share: the clouds as arrays, the fixed spectra, the moving cloud,
-    the settings and the clock."""
+    the kind of problem, the settings and the clock."""
 
     source: CloudArrays
     target: CloudArrays
@@ -56,6 +57,19 @@ class Run:
     criteria: SpectralConvergenceCriteria
     start: float
     offset: NDArray[np.float64] | None  # where the clouds were centred (centring module)
+    situation: Situation
+
+    @property
+    def fixed_normals(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The fixed cloud's down-sampled points and their normals, (N, 3) each."""
+        return self.stepper.target_normal_points, self.stepper.target_normals
+
+    def moving_pose(self, transformation: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A source-to-target ``transformation`` (4, 4) in the caller's frame as a pose of
+        the moving cloud in the frame the run works in (centred, after ``init``)."""
+        if self.offset is not None:
+            transformation = centring.shifted(transformation, self.offset)
+        return transformation @ np.linalg.inv(self.init)
 
     def climb(self, state: Climb, iterations: int) -> None:
         """The law on ``state`` for at most ``iterations``."""
@@ -100,7 +114,8 @@ def start(
     stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
     moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
     criteria = criteria or SpectralConvergenceCriteria()
-    return Run(source, target, stepper, moving, init, criteria, start, c)
+    return Run(source, target, stepper, moving, init, criteria, start, c,
+               situation(stepper, moving))
 
 
 def finish(
@@ -114,7 +129,7 @@ def finish(
     result.num_iterations = len(best.history)
     result.source_reading = run.moving.reading.turned(run.init[:3, :3].T)  # source frame
     result.target_reading = run.stepper.target_reading
-    if run.stepper.sees(run.moving):
+    if run.situation.culls:
         result.target_viewpoint = run.stepper.viewpoint.copy()
         if run.offset is not None:
             result.target_viewpoint += run.offset
@@ -166,8 +181,9 @@ def _verified(
     """:func:`o3d_spectral.verification.verify` of the returned ``transformation`` (4, 4,
     source to target) against the other ``hypotheses`` (the result's, same frame)."""
     to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
-    return verify(run.stepper, run.moving, with_normals(target, run.stepper),
-                  transformation @ to_moving, [M @ to_moving for M, _ in hypotheses])
+    return verify(run.stepper, run.moving, with_normals(target, *run.fixed_normals),
+                  transformation @ to_moving, [M @ to_moving for M, _ in hypotheses],
+                  culls=run.situation.culls)
 
 
 def subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:
@@ -184,21 +200,9 @@ def refined(
 ) -> NDArray[np.float64]:
     """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
     of a scene within the source's size of it (the polish moves the source far less)."""
-    fixed = with_normals(target, run.stepper)
+    fixed = with_normals(target, *run.fixed_normals)
     margin = max(extent(run.source.points)[1], REFINEMENT_MARGIN * run.stepper.voxel_size)
     near, kept = near_pose(fixed, run.source.points, transformation, margin)
     if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
         return transformation
     return refine(source, near, run.stepper.voxel_size, transformation, refinement)
-
-
-def with_normals(
-    target: o3d.geometry.PointCloud, stepper: SpectralStepper
-) -> o3d.geometry.PointCloud:
-    """``target``, or, when it has no normals, the down-sampled points and normals the
-    stepper prepared."""
-    if target.has_normals():
-        return target
-    fixed = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(stepper.target_normal_points))
-    fixed.normals = o3d.utility.Vector3dVector(stepper.target_normals)
-    return fixed

@@ -222,17 +222,6 @@ class SpectralStepper:
         (two views each miss what the other sees: neither is culled)."""
         return self._culls(moving.reading)
 
-    def two_views(self, moving: MovingCloud) -> bool:
-        """Whether the clouds are two scans of one thing: both single views
-        (``reading.view`` known on both) of about one size. Neither is culled, and the
-        global search adds rotations from the voxel grids' spectra
-        (:mod:`o3d_spectral.spectra.shells`), which two views share more of than their EGIs. A
-        view of one object against a view of a whole scene (a crop into its frame) is not
-        two scans: it is searched as an object in a scene
-        (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`)."""
-        views = self.target_reading.view is not None and moving.reading.view is not None
-        return views and not self.grid.holds_more(moving.radius)
-
     def _culls(self, reading: CloudReading) -> bool:
         """:meth:`sees` for a moving cloud read as ``reading``."""
         return self.viewpoint is not None and reading.view is None

@@ -3,7 +3,7 @@
 Open3D's ``fitness`` divides the source points near the target by all of them: a model
 registered right onto a single view scores 0.3-0.6 (its back is not in the view), as
 low as many wrong poses. :func:`verify` measures what the view can hold instead, as the
-early confirmation does (:func:`o3d_spectral.confirmation.fit`), at the returned pose (the
+early confirmation does (:func:`o3d_spectral.search.confirmation.fit`), at the returned pose (the
 polish's: no further ICP, so the signal costs a few distance queries, not a search): its
 *fit* is the share of the source's one-per-voxel
 points that the target's sensor would see there (facing it,
@@ -16,7 +16,7 @@ hidden behind what the view saw in front of them are not set apart: in a scene t
 would set apart a wrong pose sunk into the table as much as an occluded right one.
 
 The hypotheses of the global search that end over
-:data:`o3d_spectral.search.DISTINCT_ANGLE` away are measured the same way where they
+distinct (:func:`o3d_spectral.search.poses.distinct`) are measured the same way where they
 ended (the climbs' best iterates; the confirmation's rivals after its short ICP), and the
 best of them is the *rival fit*. Both are reported in the result (``fit``, ``rival_fit``), and
 the low-fit warning (:func:`o3d_spectral.diagnostics.low_fit`) is based on them.
@@ -31,11 +31,10 @@ import open3d as o3d
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .confirmation import fit
 from .io.cloud import MIN_POINTS
 from .refinement import near_pose
-from .search import DISTINCT_ANGLE
-from .spectra import so3
+from .search.confirmation import fit
+from .search.poses import distinct
 from .stepper import MovingCloud, SpectralStepper
 
 __all__ = ["verify", "RIVALS"]
@@ -46,7 +45,8 @@ RIVALS = 4
 
 def verify(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
-    pose: NDArray[np.float64], others: Sequence[NDArray[np.float64]] = (),
+    pose: NDArray[np.float64], others: Sequence[NDArray[np.float64]] = (), *,
+    culls: bool,
 ) -> tuple[float, float]:
     """The fit of ``pose`` and the best fit of a distinct one among ``others``.
 
@@ -62,6 +62,10 @@ def verify(
         The returned pose (moving cloud to fixed cloud).
     others : sequence of ndarray (4, 4)
         Other hypotheses, best first; the first :data:`RIVALS` are measured.
+    culls : bool
+        Whether the moving cloud is matched as the fixed cloud's sensor sees it
+        (:attr:`o3d_spectral.search.situation.Situation.culls`); between two views it is
+        not, and a fit counts the points facing the fixed sensor only.
 
     Returns
     -------
@@ -72,21 +76,21 @@ def verify(
     share = fit(stepper, moving, fixed, pose, polish=False).share
     rival = 0.0
     for other in list(others)[:RIVALS]:  # measured where they are: distinct ones only
-        if so3.rotation_angle(other[:3, :3].T @ pose[:3, :3]) > DISTINCT_ANGLE:
+        if distinct(other, pose):
             other_share = fit(stepper, moving, fixed, other, polish=False).share
-            rival = max(rival, _facing_share(stepper, moving, fixed, other, other_share))
-    return _facing_share(stepper, moving, fixed, pose, share), rival
+            rival = max(rival, _facing_share(stepper, moving, fixed, other, other_share, culls))
+    return _facing_share(stepper, moving, fixed, pose, share, culls), rival
 
 
 def _facing_share(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
-    pose: NDArray[np.float64], share: float,
+    pose: NDArray[np.float64], share: float, culls: bool,
 ) -> float:
-    """``share`` (:func:`o3d_spectral.confirmation.fit`'s), or, for two views (the moving
+    """``share`` (:func:`o3d_spectral.search.confirmation.fit`'s), or, for two views (the moving
     cloud matched whole, though the fixed cloud's sensor is known), the share of the
     moving points facing that sensor at ``pose`` that lie within one voxel of ``fixed``:
     what the fixed view can hold of the moving one (their overlap, about), not all of it."""
-    if stepper.viewpoint is None or stepper.sees(moving) or moving.reading.two_sided:
+    if stepper.viewpoint is None or culls or moving.reading.two_sided:
         return share
     R, t = pose[:3, :3], pose[:3, 3]
     points = moving.points @ R.T + t

@@ -1,12 +1,13 @@
-"""The compass search over rotations on the phase-correlation peak (o3d_spectral.ascent)."""
+"""The compass search over rotations on the phase-correlation peak (o3d_spectral.search.ascent)."""
 
 import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral.ascent import best_ascent, peak_ascent
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.search import placed_peaks, span_factor
+from o3d_spectral.search import Kind, situation
+from o3d_spectral.search.ascent import best_ascent, peak_ascent
+from o3d_spectral.search.candidates import placed_peaks, span_factor
 from o3d_spectral.spectra import so3
 
 
@@ -16,7 +17,7 @@ def scans():
     case = load_cases(["dragon_24"])[0]
     stepper = o3d_spectral.SpectralStepper(case.target, 0.005)
     moving = stepper.moving(case.source)
-    assert stepper.two_views(moving)
+    assert situation(stepper, moving).kind is Kind.TWO_SCANS
     return stepper, moving, case.T_gt
 
 
@@ -53,9 +54,9 @@ def test_span_factor_coarsens_only_clouds_spanning_more_cells(scans):
     """The dragon scan (about 50 voxels across) keeps the voxel at 64 cells; asked for 10
     cells, the grid is 2 r / 10 voxels rounded up to half a voxel."""
     stepper, moving, _ = scans
-    assert span_factor(stepper, moving, 64.0) == 1.0
+    assert span_factor(stepper.voxel_size, moving.radius, 64.0) == 1.0
     across = 2.0 * moving.radius / stepper.voxel_size
-    factor = span_factor(stepper, moving, 10.0)
+    factor = span_factor(stepper.voxel_size, moving.radius, 10.0)
     assert factor % 0.5 == 0.0 and across / 10.0 <= factor < across / 10.0 + 0.5
 
 

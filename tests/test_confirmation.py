@@ -1,5 +1,5 @@
-"""The early confirmation of the global search (o3d_spectral.confirmation) and the stage
-record of a call (o3d_spectral.stages)."""
+"""The early confirmation of the global search (o3d_spectral.search.confirmation), the
+situation that decides the stages, and the stage record of a call (o3d_spectral.stages)."""
 
 import logging
 
@@ -8,9 +8,10 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import confirmation
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.harness.metrics import instance_score
+from o3d_spectral.search import Kind, confirmation, situation
+from o3d_spectral.search.placement import Hypothesis
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
@@ -79,17 +80,16 @@ def test_without_confirmation_the_climbs_run_and_agree(drill):
 
 def _decided(stepper, moving, target, T, best, *rivals):
     """confirm() on the truth and rivals 20 degrees away, their polish and measure given
-    (``best``, ``rivals``: (share, close) each) through the ``fits`` record."""
-    truth = o3d_spectral.search.Hypothesis(
-        T[:3, :3], T[:3, :3] @ moving.centroid + T[:3, 3], 0.5, 0.0)
+    (``best``, ``rivals``: (share, close) each) through the ``fits`` record, by key."""
+    truth = Hypothesis(
+        T[:3, :3], T[:3, :3] @ moving.centroid + T[:3, 3], 0.5, 0.0, ("truth",))
     ranked, fits = [truth], {}
-    fits[truth.transformation(moving.centroid).tobytes()] = confirmation.Fit(T, *best)
+    fits[truth.key] = confirmation.Fit(T, *best)
     for k, measures in enumerate(rivals):
         turn = so3.exp(np.array([0.0, np.deg2rad(20.0 + k), 0.0])) @ T[:3, :3]
-        rival = o3d_spectral.search.Hypothesis(turn, truth.centre, 0.5, 0.0)
+        rival = Hypothesis(turn, truth.centre, 0.5, 0.0, ("rival", k))
         ranked.append(rival)
-        fits[rival.transformation(moving.centroid).tobytes()] = confirmation.Fit(
-            rival.transformation(moving.centroid), *measures)
+        fits[rival.key] = confirmation.Fit(rival.transformation(moving.centroid), *measures)
     return confirmation.confirm(stepper, moving, target, ranked, fits=fits)
 
 
@@ -111,9 +111,9 @@ def test_the_polish_brings_a_near_start_to_the_truth_and_confirms_it(drill):
     """A start 8 degrees off is polished to the truth's pose: no distinct rival."""
     source, target, T = drill
     stepper, moving = prepared(source, target)
-    truth = o3d_spectral.search.Hypothesis(
+    truth = Hypothesis(
         T[:3, :3], T[:3, :3] @ moving.centroid + T[:3, 3], 0.5, 0.0)
-    near = o3d_spectral.search.Hypothesis(
+    near = Hypothesis(
         so3.exp(np.array([0.0, np.deg2rad(8.0), 0.0])) @ T[:3, :3], truth.centre, 0.5, 0.0)
     decided = confirmation.confirm(stepper, moving, target, [truth, near])
     assert decided.confirmed and decided.runner_up == 0.0
@@ -123,7 +123,9 @@ def test_the_polish_brings_a_near_start_to_the_truth_and_confirms_it(drill):
 def test_no_confirmation_in_a_scene():
     instance = make_instance("cluttered", "power_drill", rng=instance_rng(0, 3))
     stepper, moving = prepared(instance.source, instance.target)
-    assert not confirmation.applies(stepper, moving)
+    assert situation(stepper, moving).kind is Kind.SCENE  # where no fit confirms
+    result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
+    assert "confirm" not in result.stage_times and not result.confirmed
 
 
 def test_the_ascent_runs_between_two_views_only(drill):
@@ -160,7 +162,7 @@ def test_a_crop_into_its_scene_is_searched_as_an_object_in_a_scene():
     crop, T = turned(crop, 100.0, (1.0, 1.0, 0.0), (0.05, 0.0, 0.0))
     stepper, moving = prepared(crop, instance.target)
     assert moving.reading.view is not None and stepper.target_reading.view is not None
-    assert not stepper.two_views(moving)
+    assert situation(stepper, moving).kind is Kind.SCENE
     result = o3d_spectral.registration_spectral_global(crop, instance.target, VOXEL)
     assert "sweep" not in result.stage_times and "ascent" not in result.stage_times
     truth = np.linalg.inv(T)

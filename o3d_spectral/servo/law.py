@@ -14,9 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..ascent import peak_ascent
 from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
-from ..search import hypotheses
+from ..search import situation
+from ..search.ascent import peak_ascent
+from ..search.candidates import egi_candidates
+from ..search.placement import Placements, place
 from ..spectra import so3
 from ..spectra.rotation import gradient
 from ..stepper import Evaluation, MovingCloud, SpectralStepper
@@ -59,8 +61,8 @@ class ServoLaw:
     """The control law of a servoing run against one reference cloud.
 
     With a ``search``, the first cycles head for the best hypothesis of the global search
-    (:func:`o3d_spectral.search.hypotheses`, the whole of SO(3) searched again on each
-    capture, the best refined by :func:`o3d_spectral.ascent.peak_ascent`, the gains
+    (:func:`o3d_spectral.search.placement.place`, the whole of SO(3) searched again on each
+    capture, the best refined by :func:`o3d_spectral.search.ascent.peak_ascent`, the gains
     applied to its full correction) until it lies within
     ``handover_angle`` of the identity; the law then takes over (:attr:`searching` turns
     False), until its increments add up to a turn over ``law_reach`` (it has left the
@@ -146,11 +148,14 @@ class ServoLaw:
         correlation puts the turned cloud), or None when its rotation is within
         ``handover_angle`` of the identity (the local law's turn).
 
-        The best placed peak is refined by :func:`o3d_spectral.ascent.peak_ascent`
+        The best placed peak is refined by :func:`o3d_spectral.search.ascent.peak_ascent`
         first: the peaks lie on the correlation's Euler grid, and near the goal the best
         was 6-9 degrees off while the camera was within 1 degree, so the search never
         handed over (seed 29 ran out of time at 1.7 degrees)."""
-        placed = hypotheses(self.stepper, moving, self.search)[0]
+        stepper, search = self.stepper, self.search
+        placed = place(stepper, moving, egi_candidates(stepper, moving, search), Placements(),
+                       two_scans=situation(stepper, moving).two_scans,
+                       coarse_placements=search.coarse_placements, workers=search.workers)[0]
         best = peak_ascent(self.stepper, moving, placed.transformation(moving.centroid))
         rotation = so3.log(best.rotation)
         if np.linalg.norm(rotation) <= self.handover_angle:

@@ -11,8 +11,9 @@ noisy 3D range data with partial overlap", IEEE PAMI 2013).
 
 Unlike the EGI, the shells hold the shape itself, not only the directions of its
 normals, so two views of one object that each miss what the other sees still share
-most of their spectrum: the candidates :func:`o3d_spectral.search.hypotheses` adds for
-two single views, where the EGIs of the two views differ by what each sensor sees.
+most of their spectrum: the candidates
+:func:`o3d_spectral.search.candidates.shell_candidates` adds for two single views, where
+the EGIs of the two views differ by what each sensor sees.
 
 The grid is sized to the clouds, not to the caller's voxel: ``SHELL_GRID`` voxels a side,
 the object spanning ``SHELL_SPAN`` of them, so that the spectrum is sampled alike

@@ -36,7 +36,8 @@ from .egi import grid_points
 from .harmonics import isht, resize, sht
 from .wigner import quarter_turn, wigner_z
 
-__all__ = ["CorrelationGrid", "correlation_grid", "visible_correlation_grid", "peaks"]
+__all__ = ["CorrelationGrid", "correlation_grid", "visible_correlation_grid", "peaks",
+           "peak_indices"]
 
 
 @dataclass(frozen=True)
@@ -262,20 +263,30 @@ def peaks(
     list of (ndarray (3, 3), float)
         Rotations and their correlation values, best first.
     """
+    return [(grid.rotation(index), value)
+            for index, value in peak_indices(grid, count=count, min_separation=min_separation)]
+
+
+def peak_indices(
+    grid: CorrelationGrid, *, count: int = 8, min_separation: float = np.deg2rad(15.0)
+) -> list[tuple[tuple[int, int, int], float]]:
+    """:func:`peaks` as the grid indices ``(beta, alpha, gamma)`` of the peaks and their
+    values, best first: a peak's index names its rotation on every grid of the same
+    samples (:meth:`CorrelationGrid.rotation`)."""
     v = grid.values
     # Local maxima over the 26 neighbours: alpha and gamma wrap around; beta ends at 0, pi.
     largest = maximum_filter(v, size=3, mode=("constant", "wrap", "wrap"), cval=-np.inf)
     is_peak = v >= largest
     order = np.argsort(v[is_peak])[::-1]
     indices = np.argwhere(is_peak)[order]
-    chosen: list[tuple[NDArray[np.float64], float]] = []
+    chosen: list[tuple[tuple[int, int, int], float]] = []
     kept = np.empty((count, 3, 3))  # the chosen rotations, for one test against them all
-    for index in indices:
-        R = grid.rotation(tuple(index))
+    for index in map(tuple, indices.tolist()):
+        R = grid.rotation(index)
         traces = np.einsum("ij,kij->k", R, kept[: len(chosen)])  # trace(R^T other)
         if np.all(np.arccos(np.clip((traces - 1.0) / 2.0, -1.0, 1.0)) >= min_separation):
             kept[len(chosen)] = R
-            chosen.append((R, float(v[tuple(index)])))
+            chosen.append((index, float(v[index])))
             if len(chosen) == count:
                 break
     return chosen

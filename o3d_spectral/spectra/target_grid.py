@@ -108,7 +108,7 @@ class TargetGrid:
     def coarsened(self, factor: float) -> TargetGrid:
         """The same fixed cloud on a grid of ``factor`` voxels, no window, built on first
         use and kept: many placements ranked at ``1 / factor^3`` of the FFT (placement
-        ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search`).
+        ranking, :data:`COARSE_FACTOR`; the sweep of SO(3), :mod:`o3d_spectral.search.candidates`).
         ``self`` for a factor of 1."""
         if factor == 1.0:
             return self
@@ -208,8 +208,8 @@ class TargetGrid:
         points turned about its centroid ``centre``, radius ``radius``, metres) against
         the whole fixed grid: :meth:`correlate`'s ``peak`` for each (to rounding), with
         the grids transformed in batches of :data:`BATCH_BYTES`. For ranking many
-        rotations (:func:`o3d_spectral.search.swept_rotations`), where one correlation
-        each would spend more time in Python than in its small FFTs.
+        rotations (:func:`o3d_spectral.search.candidates.swept_candidates`), where one
+        correlation each would spend more time in Python than in its small FFTs.
 
         Returns
         -------

@@ -12,9 +12,9 @@ search; Kolda, Lewis and Torczon, "Optimization by direct search", SIAM Review 2
 Each trial is one windowed phase correlation about the current place, on a grid coarse
 enough that the moving cloud spans at most :data:`ASCENT_SPAN` cells.
 
-:func:`o3d_spectral.registration_spectral_global` runs it on its best pose whatever the
-clouds: elsewhere too the law can stop a few degrees short of where the shapes agree best
-(a mug 8.6 degrees off about its axis, its handle left beside the model's).
+:func:`o3d_spectral.registration_spectral_global` runs it on its best pose between two
+scans (:class:`~o3d_spectral.search.situation.Kind`); the servo on each capture's best
+placed pose.
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .parallel import thread_map
-from .search import Hypothesis, span_factor
-from .spectra import so3
-from .stepper import MovingCloud, SpectralStepper
+from ..parallel import thread_map
+from ..spectra import so3
+from ..stepper import MovingCloud, SpectralStepper
+from .candidates import span_factor
+from .placement import Hypothesis
 
 __all__ = ["ASCENT_SPAN", "ASCENT_STEPS", "PRESELECT_SPAN", "PRESELECT_STEPS", "peak_ascent",
            "best_ascent"]
@@ -61,7 +62,7 @@ def peak_ascent(
         Turns tried about each axis, radians, largest first.
     span : float
         Cells the moving cloud spans at most on the grid of the trials
-        (:func:`o3d_spectral.search.span_factor`).
+        (:func:`o3d_spectral.search.candidates.span_factor`).
 
     Returns
     -------
@@ -74,7 +75,7 @@ def peak_ascent(
     c = moving.centroid
     R = np.asarray(pose[:3, :3], dtype=np.float64)
     centre = R @ c + pose[:3, 3]
-    factor = span_factor(stepper, moving, span)  # a coarse grid has no window
+    factor = span_factor(stepper.voxel_size, moving.radius, span)  # a coarse grid has no window
     for step in steps:
         centre, best, cost = stepper.locate(moving, R, around=centre, factor=factor)
         improved = True

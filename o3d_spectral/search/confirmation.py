@@ -1,7 +1,7 @@
 """Early confirmation of the search's best placed hypothesis: stop where it is clear.
 
 The global search places the rotation correlation's peaks by phase correlation
-(:func:`o3d_spectral.search.ranked_hypotheses`); on most calls the best placed one is
+(:mod:`o3d_spectral.search.placement`); on most calls the best placed one is
 already right and the law's climbs only refine it. :func:`confirm` tells those calls
 apart before the climbs run, the way RANSAC stops once a hypothesis is verified:
 
@@ -12,11 +12,14 @@ apart before the climbs run, the way RANSAC stops once a hypothesis is verified:
    polish (Open3D's ``fitness`` on the visible points), and its *closeness* the share
    within a quarter voxel (:data:`CLOSE_DISTANCE`);
 3. the next placed hypotheses are polished and measured the same way; those whose
-   polished pose turns the cloud over :data:`DISTINCT_ANGLE` away from the best's are its
+   polished pose is :func:`~o3d_spectral.search.poses.distinct` from the best's are its
    rivals (a start that the polish brings to the same pose is none).
 
 The pose is confirmed when its fit reaches :data:`MIN_FIT` (enough of the cloud is
-there) and no rival lies closer to the fixed cloud; never in a scene (:func:`applies`).
+there) and no rival lies closer to the fixed cloud; never in a scene
+(:class:`~o3d_spectral.search.situation.Kind`: there a flat face fits a table or a box
+beside the object as well as the object itself, and the places not climbed yet are not
+compared).
 The two scales do two jobs. At one voxel a surface turned by a near-symmetry of the
 object (a box turned half a turn, a can about its axis) still lies within a voxel of
 itself, so the fit tells whether the cloud is there but not which of those poses is
@@ -38,14 +41,14 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from .io.rows import lengths
-from .parallel import resolved_workers, thread_map
-from .refinement import near_pose, point_to_plane_icp
-from .search import DISTINCT_ANGLE, Hypothesis
-from .spectra import so3
-from .stepper import MovingCloud, SpectralStepper
+from ..io.rows import lengths
+from ..parallel import resolved_workers, thread_map
+from ..refinement import near_pose, point_to_plane_icp
+from ..stepper import MovingCloud, SpectralStepper
+from .placement import Hypothesis
+from .poses import distinct
 
-__all__ = ["Confirmation", "Fit", "applies", "confirm", "fit", "closer", "MIN_FIT",
+__all__ = ["Confirmation", "Fit", "confirm", "fit", "closer", "MIN_FIT",
            "CLOSE_DISTANCE", "CLOSER_MARGIN", "CANDIDATES", "ICP_DISTANCES"]
 
 #: Calibrated constants: the short polish's fit and closeness of the three best placed
@@ -160,16 +163,6 @@ def fit(
     return Fit(pose, float(measured.fitness), float(close))
 
 
-def applies(stepper: SpectralStepper, moving: MovingCloud) -> bool:
-    """Whether a fit can confirm a pose: not in a scene (a fixed cloud that holds more
-    than the moving one, :meth:`o3d_spectral.spectra.target_grid.TargetGrid.holds_more`). There
-    a flat face fits a table or a box beside the object as well as the object itself
-    (tabletop scenes: a box model placed 19 cm off on the table fitted 1.00 and
-    its distinct alternatives as much), and the places the search has not climbed yet
-    are not compared."""
-    return not stepper.grid.holds_more(moving.radius)
-
-
 def confirm(
     stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
     ranked: list[Hypothesis], *, fits: dict | None = None, workers: int | None = 1,
@@ -185,8 +178,10 @@ def confirm(
     ranked : list of Hypothesis
         The search's placed hypotheses, best first (at least one).
     fits : dict, optional
-        :func:`fit`'s results (:class:`Fit`) by start pose, kept across calls on the same
-        clouds: a hypothesis still among the best after the sweep is not polished again.
+        :func:`fit`'s results (:class:`Fit`) by hypothesis key
+        (:attr:`~o3d_spectral.search.placement.Hypothesis.key`), kept across calls on the
+        same clouds: a hypothesis still among the best after the sweep is not polished
+        again. Hypotheses without a key are keyed by their rank.
     workers : int or None
         Threads (all cores when None). On one, the rivals are polished only where the
         best fits; on more, the :data:`CANDIDATES` are polished side by side at once
@@ -197,25 +192,25 @@ def confirm(
     Confirmation
     """
     fits = {} if fits is None else fits
-    starts = {start.tobytes(): start for start in
-              (hypothesis.transformation(moving.centroid) for hypothesis in ranked[:CANDIDATES])}
+    candidates = ranked[:CANDIDATES]
+    keys = [hypothesis.key or ("rank", i) for i, hypothesis in enumerate(candidates)]
+    starts = {key: h.transformation(moving.centroid) for key, h in zip(keys, candidates,
+                                                                        strict=True)}
     if resolved_workers(workers) > 1:
         missing = [key for key in starts if key not in fits]
         polished = thread_map(lambda key: fit(stepper, moving, fixed, starts[key]), missing,
                               workers)
         fits.update(zip(missing, polished, strict=True))
 
-    def fitted(hypothesis: Hypothesis) -> Fit:
-        key = hypothesis.transformation(moving.centroid).tobytes()
+    def fitted(key: tuple) -> Fit:
         if key not in fits:
             fits[key] = fit(stepper, moving, fixed, starts[key])
         return fits[key]
 
-    best = fitted(ranked[0])
+    best = fitted(keys[0])
     rivals = []
     if best.share >= MIN_FIT:
-        rivals = [other for other in map(fitted, ranked[1:CANDIDATES])
-                  if so3.rotation_angle(other.pose[:3, :3].T @ best.pose[:3, :3]) > DISTINCT_ANGLE]
+        rivals = [other for other in map(fitted, keys[1:]) if distinct(other.pose, best.pose)]
     confirmed = best.share >= MIN_FIT and all(other.close <= best.close for other in rivals)
     runner_up = max((other.share for other in rivals), default=0.0)
     return Confirmation(best.pose, best.share, runner_up, confirmed)
