@@ -27,18 +27,18 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
+from o3d_spectral.stages import GLOBAL_STAGES
 
-STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish")
-COLUMNS = [*STAGES, "total", "FPFH-RANSAC"]
+COLUMNS = [*GLOBAL_STAGES, "total", "FPFH-RANSAC"]
 
 
 def staged(task: speed.Task) -> tuple[dict[str, float], bool]:
-    """The spectral call's stage times (seconds, every stage of :data:`STAGES`) and
+    """The spectral call's stage times (seconds, every stage of :data:`GLOBAL_STAGES`) and
     whether it was confirmed early."""
     start = time.perf_counter()
     result = o3d_spectral.registration_spectral_global(
         task.source, task.target, task.voxel, search=o3d_spectral.GlobalSearchOption(workers=1))
-    times = {stage: result.stage_times.get(stage, 0.0) for stage in STAGES}
+    times = {stage: result.stage_times.get(stage, 0.0) for stage in GLOBAL_STAGES}
     times["total"] = time.perf_counter() - start
     return times, result.confirmed
 

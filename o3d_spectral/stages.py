@@ -14,7 +14,14 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-__all__ = ["StageClock"]
+__all__ = ["StageClock", "GLOBAL_STAGES", "LOCAL_STAGES"]
+
+#: The stages of :func:`o3d_spectral.registration_spectral_global`, in the order they can
+#: run (a call runs a subset: ``confirm`` not in a scene, ``sweep`` and ``ascent`` between
+#: two scans only, ``climbs`` where nothing was confirmed).
+GLOBAL_STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish")
+#: The stages of :func:`o3d_spectral.registration_spectral`.
+LOCAL_STAGES = ("prepare", "law", "polish")
 
 logger = logging.getLogger("o3d_spectral")
 
@@ -33,7 +40,10 @@ class StageClock:
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        """Time the block as stage ``name`` and log it at INFO when it ends."""
+        """Time the block as stage ``name`` (one of :data:`GLOBAL_STAGES` or
+        :data:`LOCAL_STAGES`) and log it at INFO when it ends."""
+        if name not in GLOBAL_STAGES + LOCAL_STAGES:
+            raise ValueError(f"unknown stage {name!r}")
         start = time.perf_counter()
         try:
             yield

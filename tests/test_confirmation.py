@@ -188,3 +188,16 @@ def test_a_closer_placed_pose_is_returned_instead_of_the_climbed_one(monkeypatch
     monkeypatch.setattr(confirmation, "CLOSER_MARGIN", 2.0)  # never closer: the climbs' pose
     climbed = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
     assert not score(np.asarray(climbed.transformation))[2]
+
+
+def test_a_stage_outside_the_named_stages_is_refused():
+    """Stage names are one list (``stages.GLOBAL_STAGES``, ``LOCAL_STAGES``) that the
+    benchmarks read: a misspelt stage cannot slip into ``result.stage_times``."""
+    from o3d_spectral.stages import GLOBAL_STAGES, StageClock
+
+    clock = StageClock()
+    with clock.stage(GLOBAL_STAGES[1]):
+        pass
+    assert list(clock.times) == ["candidates"]
+    with pytest.raises(ValueError, match="unknown stage"), clock.stage("candidate"):
+        pass
