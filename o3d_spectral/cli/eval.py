@@ -23,7 +23,8 @@ EXAMPLES = (
     "Run it again with the same --out to resume: done (instance, method) pairs are skipped.\n"
     "Several sessions may write one --out at once (shards, machines); report merges them.\n"
     "Methods: spectral, spectral_paper, spectral_global, icp_point_to_point, icp_point_to_plane,\n"
-    "fpfh_ransac, fgr, fpfh_ransac_tuned (not on the tuning split, index % 4 == 0),\n"
+    "fpfh_ransac, fpfh_ransac_lean (its ICP on clouds thinned to half the voxel), fgr,\n"
+    "fpfh_ransac_tuned (not on the tuning split, index % 4 == 0),\n"
     "kiss_matcher and small_gicp (pip install 'o3d-spectral[peers]'), and any a plugin\n"
     "registers (an unknown name lists them)."
 )

@@ -10,8 +10,9 @@ import open3d as o3d
 
 from o3d_spectral.refinement import TUTORIAL_DISTANCE, point_to_plane_refinement
 
-__all__ = ["FPFH", "REFINEMENT", "RANSAC", "open3d_fields", "fpfh_features",
-           "global_then_refine", "with_target_normals", "ransac_matcher"]
+__all__ = ["FPFH", "REFINEMENT", "LEAN_REFINEMENT", "RANSAC", "open3d_fields",
+           "fpfh_features", "global_then_refine", "with_target_normals", "ransac_matcher",
+           "lean_refinement"]
 
 _reg = o3d.pipelines.registration
 
@@ -39,6 +40,11 @@ REFINEMENT = {
         _reg.ICPConvergenceCriteria(), ("max_iteration", "relative_fitness", "relative_rmse")
     ),
 }
+
+#: The refinement as users tune it for speed: the same ICP on both clouds thinned to half
+#: the voxel, the target's normals estimated there (as the features' are); on raw scans it
+#: takes half the tutorial's time and registers as often, as accurately.
+LEAN_REFINEMENT = REFINEMENT | {"down_sample_voxels": 0.5}
 
 #: FPFH-RANSAC's matching (the tutorial's; distances in voxels).
 RANSAC = {
@@ -74,19 +80,41 @@ def fpfh_features(cloud: o3d.geometry.PointCloud, voxel_size: float, features: d
 
 
 def global_then_refine(
-    source, target, voxel_size: float, seed: int, match, features: dict = FPFH
+    source, target, voxel_size: float, seed: int, match, features: dict = FPFH, *,
+    lean: bool = False,
 ) -> np.ndarray:
     """FPFH features of both clouds (``features``: sizes in voxels, the tutorial's by
     default), the global registration ``match(source_down, target_down, source_fpfh,
     target_fpfh)`` (seeded), then the tutorial's point-to-plane refinement on the full
-    clouds (:func:`o3d_spectral.registration.point_to_plane_refinement`); returns the 4x4
-    estimate. A target without normals gets them first (:func:`with_target_normals`)."""
-    target = with_target_normals(target, voxel_size)
+    clouds (:func:`o3d_spectral.refinement.point_to_plane_refinement`; a target without
+    normals gets them first, :func:`with_target_normals`), or with ``lean`` on both clouds
+    thinned to half the voxel (:func:`lean_refinement`); returns the 4x4 estimate."""
+    if not lean:  # before the features: given normals orient the features' estimate
+        target = with_target_normals(target, voxel_size)
     source_down, source_fpfh = fpfh_features(source, voxel_size, features)
     target_down, target_fpfh = fpfh_features(target, voxel_size, features)
     o3d.utility.random.seed(seed)
-    coarse = match(source_down, target_down, source_fpfh, target_fpfh)
-    return point_to_plane_refinement(source, target, voxel_size, coarse.transformation)
+    coarse = match(source_down, target_down, source_fpfh, target_fpfh).transformation
+    if lean:
+        return lean_refinement(source, target, voxel_size, coarse)
+    return point_to_plane_refinement(source, target, voxel_size, coarse)
+
+
+def lean_refinement(
+    source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud, voxel_size: float,
+    init: np.ndarray,
+) -> np.ndarray:
+    """The tutorial's point-to-plane refinement from ``init`` (4, 4) on both clouds thinned
+    to :data:`LEAN_REFINEMENT`'s ``down_sample_voxels`` (half the voxel, metres), the
+    thinned target's normals estimated as the features' are (its own normals when given
+    are averaged by the thinning)."""
+    thin = LEAN_REFINEMENT["down_sample_voxels"] * voxel_size
+    source, target = source.voxel_down_sample(thin), target.voxel_down_sample(thin)
+    if not target.has_normals():
+        target.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(
+            radius=FPFH["normal_radius_voxels"] * voxel_size, max_nn=FPFH["normal_max_nn"]
+        ))
+    return point_to_plane_refinement(source, target, voxel_size, init)
 
 
 def with_target_normals(
