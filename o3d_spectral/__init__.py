@@ -9,7 +9,8 @@ The public API is flat, one call per algorithm, shaped like Open3D's::
     result = o3d_spectral.registration_spectral(source, target, 0.008, init)
 
 One model against many targets: :func:`prepare` it once and pass the
-:class:`PreparedSource` as the source. Settings: :class:`SpectralRegistrationOption`
+:class:`PreparedSource` as the source; many sources against one target:
+:func:`prepare_target`, the :class:`PreparedTarget` as the target. Settings: :class:`SpectralRegistrationOption`
 (representation and law), :class:`GlobalSearchOption`, :class:`RefinementOption`,
 :class:`CloudOption`, :class:`SpectralConvergenceCriteria`. Repeated calls against one
 fixed cloud (visual servoing): :class:`SpectralStepper`. A voxel size for two clouds:
@@ -34,6 +35,7 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
         SpectralRegistrationOption,
     )
     from .prepared import PreparedSource, prepare
+    from .prepared_target import PreparedTarget, prepare_target
     from .registration import registration_spectral, registration_spectral_global
     from .result import SpectralRegistrationResult
     from .stepper import Evaluation, MovingCloud, SpectralStepper
@@ -43,8 +45,10 @@ __all__ = [
     "registration_spectral",
     "registration_spectral_global",
     "prepare",
+    "prepare_target",
     "suggest_voxel_size",
     "PreparedSource",
+    "PreparedTarget",
     "SpectralRegistrationOption",
     "GlobalSearchOption",
     "RefinementOption",
@@ -65,6 +69,8 @@ __getattr__ = lazy_attributes(
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
         "prepare": "prepared",
+        "prepare_target": "prepared_target",
+        "PreparedTarget": "prepared_target",
         "suggest_voxel_size": "voxel",
         "PreparedSource": "prepared",
         "SpectralRegistrationResult": "result",

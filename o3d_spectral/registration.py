@@ -38,7 +38,9 @@ _COMMON_PARAMETERS = """source, target : PointCloud, tensor PointCloud or ndarra
         Clouds in metres (``open3d.geometry.PointCloud``, ``open3d.t.geometry.PointCloud``);
         numpy arrays of shape (N, 3), or (N, 6) with normals in the last three columns.
         Neither is modified. ``source`` may also be a :class:`PreparedSource`
-        (:func:`o3d_spectral.prepare`), to register one model to many targets. Normals are
+        (:func:`o3d_spectral.prepare`), to register one model to many targets, and
+        ``target`` a :class:`PreparedTarget` (:func:`o3d_spectral.prepare_target`), to
+        register many sources to one target. Normals are
         used when present (oriented again, with a warning, when neighbours' point to
         opposite sides: an estimate with no orientation step); otherwise estimated (PCA,
         radius ``cloud.normal_radius``). Signs are chosen towards ``cloud.camera_location``,

@@ -28,6 +28,7 @@ from .options import (
     SpectralRegistrationOption,
 )
 from .prepared import PreparedSource
+from .prepared_target import PreparedTarget
 from .refinement import near_pose, refine, representatives, with_normals
 from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
@@ -103,6 +104,10 @@ def start(
     if ready is not None:
         ready.check(voxel_size, option, cloud)
         source = ready.arrays
+    fixed = target if isinstance(target, PreparedTarget) else None
+    if fixed is not None:
+        fixed.check(voxel_size, option, cloud)
+        target = fixed.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     c, origin = centring.offset(target), None
     prepared = None if ready is None else ready.cloud
@@ -111,7 +116,8 @@ def start(
         cloud = centring.centred_option(cloud or CloudOption(), c)
         init, origin = centring.shifted(init, c), -c
         prepared = None if ready is None else ready.moved(c)
-    stepper = SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin)
+    stepper = (fixed.stepper if fixed is not None else
+               SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin))
     moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
     criteria = criteria or SpectralConvergenceCriteria()
     return Run(source, target, stepper, moving, init, criteria, start, c,
