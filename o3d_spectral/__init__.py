@@ -10,9 +10,10 @@ The public API is flat, one call per algorithm, shaped like Open3D's::
 
 One model against many targets: :func:`prepare` it once and pass the
 :class:`PreparedSource` as the source; many sources against one target:
-:func:`prepare_target`, the :class:`PreparedTarget` as the target. Settings: :class:`SpectralRegistrationOption`
-(representation and law), :class:`GlobalSearchOption`, :class:`RefinementOption`,
-:class:`CloudOption`, :class:`SpectralConvergenceCriteria`. Repeated calls against one
+:func:`prepare_target`, the :class:`PreparedTarget` as the target. Settings:
+:class:`SpectralRegistrationOption` (representation and law), :class:`GlobalSearchOption`,
+:class:`RefinementOption`, :class:`CloudOption`, :class:`SpectralConvergenceCriteria`.
+Repeated calls against one
 fixed cloud (visual servoing): :class:`SpectralStepper`. A voxel size for two clouds:
 :func:`suggest_voxel_size`. See ``docs/architecture.md``
 for the modules and ``docs/conventions.md`` for rotation, Euler-angle, spherical-harmonic
