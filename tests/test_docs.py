@@ -3,12 +3,16 @@
 Every public name (the ``__all__`` of the package and of its documented subpackages) has
 a docstring and an entry in the API reference (``docs/reference/*.md``, rendered by
 ``mkdocs build --strict`` in ``.ci/run``); the README fits on about one screen and links
-every page of ``docs/``.
+every page of ``docs/``; the generated figures of the README and the docs read as
+``tools/docs_figures.py`` renders them from the stored bench outputs in ``docs/data/``,
+each of which names its commit.
 """
 
 from __future__ import annotations
 
+import difflib
 import importlib
+import importlib.util
 import inspect
 import re
 from pathlib import Path
@@ -54,3 +58,36 @@ def test_the_readme_fits_on_a_screen_and_links_every_page():
     pages = {p.name for p in DOCS.glob("*.md")} - {"index.md"}
     linked = set(re.findall(r"\]\(docs/([\w-]+\.md)\)", readme))
     assert pages <= linked, f"pages the README does not link: {sorted(pages - linked)}"
+
+
+def docs_figures():
+    """``tools/docs_figures.py`` as a module (``tools/`` is not a package)."""
+    path = ROOT / "tools" / "docs_figures.py"
+    spec = importlib.util.spec_from_file_location("docs_figures", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_figure_in_the_docs_is_rendered_from_a_stored_output():
+    figures = docs_figures()
+    docs = figures.rendered()
+    assert ROOT / "README.md" in docs and DOCS / "results.md" in docs
+    for path, (text, new) in docs.items():
+        diff = "".join(difflib.unified_diff(
+            text.splitlines(keepends=True), new.splitlines(keepends=True),
+            str(path.relative_to(ROOT)), "rendered from docs/data"))
+        assert text == new, (
+            f"{path.relative_to(ROOT)} differs from its stored outputs: edit docs/data/ and run "
+            f"python tools/docs_figures.py, not the figures\n{diff}")
+
+
+def test_every_stored_output_names_its_file_command_and_commit():
+    for name, source in docs_figures().sources().items():
+        assert (DOCS / "data" / source["file"]).is_file(), name
+        assert source["command"].strip(), name
+        assert re.fullmatch(r"[0-9a-f]{7,40}", source["commit"]), name
+
+
+def test_the_results_page_stays_a_reference():
+    assert len((DOCS / "results.md").read_text().splitlines()) <= 300
