@@ -49,7 +49,8 @@ from o3d_spectral.harness import real  # noqa: E402
 
 CASE = "ycbv_frame_025_mug"
 JITTER = 0.0005
-LABELS = {"spectral_global": "spectral global", "fpfh_ransac": "FPFH-RANSAC + ICP"}
+LABELS = {"spectral_global": "spectral global", "fpfh_ransac_lean": "lean FPFH-RANSAC",
+          "fpfh_ransac": "tutorial FPFH-RANSAC"}
 
 
 def resampled(points: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:

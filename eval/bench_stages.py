@@ -1,6 +1,6 @@
 """Benchmark: where the global spectral call spends its time, stage by stage.
 
-Runs ``o3d_spectral.registration_spectral_global`` (defaults) and FPFH-RANSAC on the
+Runs ``o3d_spectral.registration_spectral_global`` (defaults) and lean FPFH-RANSAC on the
 instances of ``eval/bench_speed.py`` (its tasks, one thread) and reads each stage's time
 from the call's own record, ``result.stage_times`` (:mod:`o3d_spectral.stages`): prepare,
 candidates (the SO(3) correlation, the placements and, in a scene, the focused searches),
@@ -29,7 +29,8 @@ import numpy as np
 import o3d_spectral
 from o3d_spectral.stages import GLOBAL_STAGES
 
-COLUMNS = [*GLOBAL_STAGES, "total", "FPFH-RANSAC"]
+REFERENCE_COLUMN = "lean FPFH-RANSAC"
+COLUMNS = [*GLOBAL_STAGES, "total", REFERENCE_COLUMN]
 
 
 def staged(task: speed.Task) -> tuple[dict[str, float], bool]:
@@ -59,14 +60,14 @@ def main() -> None:
         tasks = speed.group_tasks(group, args.suites, args.rotations, args.limit)
         if not warmed and tasks:  # untimed: FFT plans, caches, compiled kernels
             speed.spectral_global(tasks[0])
-            speed.fpfh_ransac(tasks[0])
+            speed.CALLS[speed.REFERENCE](tasks[0])
             warmed = True
         times, confirmed = [], 0
         for task in tasks:
             clock, early = staged(task)
             start = time.perf_counter()
-            speed.fpfh_ransac(task)
-            clock["FPFH-RANSAC"] = time.perf_counter() - start
+            speed.CALLS[speed.REFERENCE](task)
+            clock[REFERENCE_COLUMN] = time.perf_counter() - start
             confirmed += early
             times.append([clock[c] for c in COLUMNS])
             rows.append({"group": group, "instance": task.name, "confirmed": early,
