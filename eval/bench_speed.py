@@ -38,6 +38,9 @@ Groups and voxel sizes:
   symmetry-aware, 5 deg and 1 cm.
 * ``dragon_unoriented``: the dragon pairs 24-72 degrees apart with both clouds' normals as
   Open3D's ``estimate_normals()`` leaves them, unoriented (``real.with_normals``).
+* ``dragon_model``: the dragon model into each of its eight scans, the model the other
+  seven scans merged at their recorded poses (thinned to 1 mm), turned by ``--rotations``
+  seeded random rotations; 5 mm.
 * real cases (``o3d_spectral.harness.real``; ``dragon_24`` to ``dragon_120``: 5 mm, the
   dragon is 0.2 m across; ``ycbv_crop``, ``ycbv_frame``: 8 mm, as the suites' YCB
   objects): every case from ``--rotations`` seeded random rotations of its source (uniform
@@ -142,8 +145,10 @@ CALLS = {"spectral_global": spectral_global, **{m: harness_call(m) for m in METH
 TURNTABLE_GROUPS = {"turntable_45": 45, "turntable_90": 90, "turntable_135": 135}
 #: The dragon pairs registered with unoriented normals.
 UNORIENTED_GROUPS = ("dragon_24", "dragon_48", "dragon_72")
+#: Spacing (metres) the merged dragon model is thinned to.
+DRAGON_MODEL_SPACING = 0.001
 ALL_GROUPS = (*CONDITIONS, "crop_in_scene", "wide", *TURNTABLE_GROUPS, "dragon_unoriented",
-              *real.GROUPS)
+              "dragon_model", *real.GROUPS)
 
 
 #: The groups made from the suites' folder (``--suites``).
@@ -162,6 +167,8 @@ def group_tasks(group: str, suites: Path | None, rotations: int, limit: int) -> 
         return list(turntable_tasks(group, limit))
     if group == "dragon_unoriented":
         return list(unoriented_tasks(rotations, limit))
+    if group == "dragon_model":
+        return list(dragon_model_tasks(rotations, limit))
     return list(real_tasks(group, rotations, limit))
 
 
@@ -204,6 +211,33 @@ def unoriented_tasks(rotations: int, limit: int) -> Iterator[Task]:
         case = real.with_normals(case, "unoriented", motion)
         yield Task("dragon_unoriented", f"{case.name}_r{r}_unoriented", case.source,
                    case.target, real.VOXEL_SIZES[case.group], seed, real.case_score(case))
+
+
+def dragon_model_tasks(rotations: int, limit: int) -> Iterator[Task]:
+    """The dragon model (the seven other scans merged in the world frame of
+    ``real.dragon_pose``, thinned to :data:`DRAGON_MODEL_SPACING`) into each scan, in the
+    scan's frame, from ``rotations`` seeded random rotations of the model."""
+    folder = real.real_dir() / "dragon"
+    scans = {a: o3d.io.read_point_cloud(str(folder / f"dragonStandRight_{a}.ply"))
+             for a in real.DRAGON_ANGLES}
+    count = 0
+    for angle in real.DRAGON_ANGLES:
+        model = o3d.geometry.PointCloud()
+        for other in real.DRAGON_ANGLES:
+            if other != angle:
+                model += o3d.geometry.PointCloud(scans[other]).transform(real.dragon_pose(other))
+        model = model.voxel_down_sample(DRAGON_MODEL_SPACING)
+        case = real.RealCase(f"dragon_model_{angle}", "dragon_model", model,
+                             o3d.geometry.PointCloud(scans[angle]),
+                             np.linalg.inv(real.dragon_pose(angle)))
+        for r in range(rotations):
+            if count >= limit:
+                return
+            seed = real.rotation_seed(case.name, r)
+            turned, _ = real.randomly_rotated(case, seed)
+            yield Task("dragon_model", f"{case.name}_r{r}", turned.source, turned.target,
+                       real.VOXEL_SIZES["dragon_24"], seed, real.case_score(turned))
+            count += 1
 
 
 def crop_tasks(root: Path, limit: int) -> Iterator[Task]:
