@@ -171,6 +171,34 @@ def real_scans() -> str:
     ])
 
 
+def bop() -> str:
+    names = {"bop_ycbv_test_crop": "model into its crop",
+             "bop_ycbv_test_frame": "model into the whole frame"}
+    rows = []
+    for r in read_csv("bop_ycbv"):
+        n = int(r["n"])
+        rows.append([names[r["suite"]], r["method"], str(n),
+                     *(f"{float(r[k]):.3f}" for k in ("AR", "AR VSD", "AR MSSD", "AR MSPD")),
+                     f"{round(float(r['success (%)']) * n)}/{n}"])
+    return "\n".join([
+        table(["instances", "method", "n", "AR", "AR VSD", "AR MSSD", "AR MSPD",
+               "success (5 deg, 1 cm)"], rows),
+        "",
+        provenance("bop_ycbv"),
+    ])
+
+
+def pairs() -> str:
+    rows = [[r["method"], r["pairs"], f"{100 * float(r['recall (%)']):.1f}%",
+             f"{float(r['RE (deg)']):.2f}", f"{float(r['TE (cm)']):.2f}"]
+            for r in read_csv("dragon_3dmatch")]
+    return "\n".join([
+        table(["method", "pairs", "recall", "RE (deg)", "TE (cm)"], rows),
+        "",
+        provenance("dragon_3dmatch"),
+    ])
+
+
 def suites_current() -> str:
     current, run = summary("suites_spectral_global"), summary("suites_all_methods")
     rows = []
@@ -248,6 +276,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "suites-current": suites_current,
     "suites-all": suites_all,
     "c1": c1,
+    "bop": bop,
+    "pairs": pairs,
     "method-failures": method_failures,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
