@@ -34,6 +34,9 @@ import numpy as np  # noqa: E402
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
 from o3d_spectral.synthetic.wide import wide_scene_instance  # noqa: E402
 
+LABELS = {"spectral_global": "spectral global", "fpfh_ransac_lean": "lean FPFH-RANSAC",
+          "fpfh_ransac": "tutorial FPFH-RANSAC"}
+
 
 def measure(name: str, width: float, seed: int) -> list[dict]:
     """Both methods on one scene: seconds and success of each."""
@@ -53,13 +56,13 @@ def measure(name: str, width: float, seed: int) -> list[dict]:
 
 def figure(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    for method, label in zip(speed.METHODS, ("spectral global", "FPFH-RANSAC"), strict=True):
+    for method in speed.METHODS:
         widths = sorted({r["width_m"] for r in rows})
         points = [np.median([r["scene_points"] for r in rows if r["width_m"] == w])
                   for w in widths]
         seconds = [np.median([r["seconds"] for r in rows
                               if r["width_m"] == w and r["method"] == method]) for w in widths]
-        ax.loglog(points, seconds, "o-", label=label)
+        ax.loglog(points, seconds, "o-", label=LABELS[method])
         for w, x, y in zip(widths, points, seconds, strict=True):
             ax.annotate(f"{w:g} m", (x, y), textcoords="offset points", xytext=(4, -10),
                         fontsize=8)
