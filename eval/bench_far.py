@@ -24,7 +24,8 @@ for the YCB-Video object (``o3d_spectral.harness.real.case_errors``), computed i
 case's own frame. Prints a markdown table (one row per distance, the spread over the
 distances last) and writes it to ``--out`` when given.
 
-Usage: python eval/bench_far.py [--out out/bench_far.md]
+Usage: python eval/bench_far.py [--out out/bench_far.md] [--cases mustard_model ...]
+       [--distances 0 1000]
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from o3d_spectral.synthetic import models
 
 DISTANCES = (0.0, 1.0, 10.0, 30.0, 50.0, 80.0, 99.0, 101.0, 1000.0)
 DIRECTION = np.array([0.6, -0.48, 0.64])  # unit, oblique to every axis
+CASES = ("mustard_model", "dragon_0_24", "ycbv_foam_brick")
 
 
 def _mustard() -> real.RealCase:
@@ -80,13 +82,17 @@ def cases() -> list[tuple[str, real.RealCase, np.ndarray, np.ndarray, float, boo
     return out
 
 
-def run() -> dict[str, list[tuple[float, float, float, float, float]]]:
-    """Per case, a row per distance: (d, polished deg, polished mm, unpolished deg, mm)."""
+def run(names: tuple[str, ...] = CASES, distances: tuple[float, ...] = DISTANCES
+        ) -> dict[str, list[tuple[float, float, float, float, float]]]:
+    """Per case of ``names`` (of :data:`CASES`), a row per distance of ``distances``
+    (metres): (d, polished deg, polished mm, unpolished deg, mm)."""
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     table = {}
     for name, case, source, target, voxel, camera in cases():
+        if name not in names:
+            continue
         rows = []
-        for d in DISTANCES:
+        for d in distances:
             offset = DIRECTION * d
             shift = np.eye(4)
             shift[:3, 3] = offset
@@ -122,8 +128,11 @@ def markdown(table: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the markdown table here")
+    parser.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
+    parser.add_argument("--distances", type=float, nargs="+", default=list(DISTANCES),
+                        help="metres from the origin")
     args = parser.parse_args()
-    text = markdown(run())
+    text = markdown(run(tuple(args.cases), tuple(args.distances)))
     print(text)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -21,7 +21,7 @@ mode and method, with the estimate and the spectral call's ``confidence`` and wa
 ``--out``.
 
 Usage: python eval/bench_real.py --out out/bench_real [--rotations 5] [--workers 2]
-       [--groups dragon_24 ...] [--modes oriented unoriented none]
+       [--groups dragon_24 ...] [--modes oriented unoriented none] [--limit 1]
 """
 
 from __future__ import annotations
@@ -135,8 +135,11 @@ def main() -> None:
     parser.add_argument("--groups", nargs="+", choices=real.GROUPS, default=list(real.GROUPS))
     parser.add_argument("--modes", nargs="+", choices=real.NORMAL_MODES,
                         default=list(real.NORMAL_MODES))
+    parser.add_argument("--limit", type=int, help="only the first N cases of each group")
     args = parser.parse_args()
-    tasks = [(f"{case.group}/{case.name}", r, mode) for case in real.load_cases(args.groups)
+    groups = [g for g in real.GROUPS if g in args.groups]  # load_cases's order
+    cases = [case for group in groups for case in real.load_cases([group])[:args.limit]]
+    tasks = [(f"{case.group}/{case.name}", r, mode) for case in cases
              for r in range(args.rotations) for mode in args.modes]
     rows: list[dict] = []
     with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn")) as pool:
