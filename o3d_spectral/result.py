@@ -52,7 +52,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         How well the returned pose fits, in [0, 1]: the share of the source's points (one
         per voxel) that the target's sensor would see there (all of them when the target
         is not a single view) lying within one voxel of the target after a short
-        point-to-plane polish (:func:`o3d_spectral.confirmation.fit`). Unlike
+        point-to-plane polish (:func:`o3d_spectral.search.confirmation.fit`). Unlike
         ``fitness`` it does not count the back of a model, which a view cannot hold, as
         missed (:mod:`o3d_spectral.verification`). The low-fit warning
         (:func:`o3d_spectral.diagnostics.low_fit`) is based on it and on ``rival_fit``;
@@ -71,7 +71,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         What was logged as a warning during the call (:mod:`o3d_spectral.diagnostics`).
     confirmed : bool
         Global call only: the search's best placed hypothesis was confirmed by its fit
-        (:mod:`o3d_spectral.confirmation`) and the climbs were skipped; ``hypotheses``
+        (:mod:`o3d_spectral.search.confirmation`) and the climbs were skipped; ``hypotheses``
         then holds that pose with its fit, ``confidence`` its fit's lead over the best
         distinct alternative, and ``history`` is empty.
     stage_times : dict of str to float
