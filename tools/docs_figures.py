@@ -119,43 +119,34 @@ def span(values: list[int]) -> str:
 
 def readme() -> str:
     current, run = summary("suites_spectral_global"), summary("suites_all_methods")
-    c1 = c1_local()
-    spectral = " / ".join(pct(current[s, "spectral_global"]) for s in SUITES.values())
-    fpfh = " / ".join(pct(run[s, "fpfh_ransac"]) for s in SUITES.values())
-    n = current["full", "spectral_global"]["n"]
-    rows = [
-        [f"{n} full models / partial views / occluded views / cluttered scenes",
-         f"{spectral}%", f"{fpfh}%"],
-        ["paper's C-1 (full model, rotations up to 45 deg; the law alone)",
-         f"{c1['share'].removesuffix('.0')}% within 1 deg, 2 mm", ""],
-    ]
-    return "\n".join([
-        table(["success (5 deg and 1 cm)", "`registration_spectral_global`", "FPFH-RANSAC"],
-              rows),
-        "",
-        f"`registration_spectral_global` and C-1 at commit "
-        f"{sources()['suites_spectral_global']['commit']}, FPFH-RANSAC at "
-        f"{sources()['suites_all_methods']['commit_other']} (stored in `docs/data/`).",
-    ])
-
-
-def readme_real() -> str:
     spectral, fpfh = real_success("spectral_global"), real_success("fpfh_ransac")
+    c1 = c1_local()
+    n = current["full", "spectral_global"]["n"]
     dragons = ("dragon_24", "dragon_48", "dragon_72", "dragon_96")
     ycbv = ("ycbv_crop", "ycbv_frame")
     rows = [
+        [f"{n} full models / partial views / occluded views / cluttered scenes",
+         " / ".join(pct(current[s, "spectral_global"]) for s in SUITES.values()) + "%",
+         " / ".join(pct(run[s, "fpfh_ransac"]) for s in SUITES.values()) + "%"],
         ["dragon laser scans 24 / 48 / 72 / 96 degrees apart, any rotation",
          " / ".join(span(spectral[g]) for g in dragons) + "%",
          " / ".join(span(fpfh[g]) for g in dragons) + "%"],
         ["YCB-Video model into its RGB-D crop / the whole frame",
          " / ".join(span(spectral[g]) for g in ycbv) + "%",
          " / ".join(span(fpfh[g]) for g in ycbv) + "%"],
+        ["paper's C-1 (full model, rotations up to 45 deg; the law alone)",
+         f"{c1['share'].removesuffix('.0')}% within 1 deg, 2 mm", ""],
     ]
+    commit = sources()["suites_spectral_global"]["commit"]
+    if not sources()["real_scans"]["commit"] == sources()["c1_local"]["commit"] == commit:
+        raise ValueError("the README's rows are measured at one commit: update them together")
     return "\n".join([
-        table(["real scans, success over 3 normal modes", "`registration_spectral_global`",
-               "FPFH-RANSAC"], rows),
+        table(["success (5 deg and 1 cm)", "`registration_spectral_global`", "FPFH-RANSAC"],
+              rows),
         "",
-        f"Both at commit {sources()['real_scans']['commit']} (stored in `docs/data/`).",
+        f"Measured at commit {commit}, FPFH-RANSAC on the suites at "
+        f"{sources()['suites_all_methods']['commit_other']}; the real scans' ranges are over "
+        f"3 ways of giving normals (stored in `docs/data/`).",
     ])
 
 
@@ -271,7 +262,6 @@ def method_failures() -> str:
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
-    "readme-real": readme_real,
     "real-scans": real_scans,
     "suites-current": suites_current,
     "suites-all": suites_all,
