@@ -1,0 +1,368 @@
+"""Every script of ``eval/`` runs, on tiny inputs, and writes what it should.
+
+Each script runs as a subprocess (``sys.executable eval/NAME.py ...``, in a temporary
+folder) on a suite of one instance per condition, one group, one rotation, one repeat;
+the test checks its exit code and the rows, columns or lines of its output. The scripts
+that read another's output (``failure_signal``, ``confidence_precision``) read the tiny
+runs of those here. :data:`SCRIPTS` lists them all: a script added to ``eval/`` without a
+test here fails :func:`test_every_eval_script_has_a_tiny_run`.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+EVAL = ROOT / "eval"
+BOP_YCBV = ROOT / "o3d_spectral" / "datasets" / "bop_ycbv"
+CONDITIONS = ("full", "partial", "occluded", "cluttered")
+#: Every script of ``eval/``, each run by the test ``test_<name>``.
+SCRIPTS = (
+    "bench_far.py",
+    "bench_iteration.py",
+    "bench_large.py",
+    "bench_prepared.py",
+    "bench_pyramid.py",
+    "bench_real.py",
+    "bench_report.py",
+    "bench_scaling.py",
+    "bench_speed.py",
+    "bench_stages.py",
+    "bench_width.py",
+    "bop_poses.py",
+    "c1_local.py",
+    "check_unchanged.py",
+    "confidence_precision.py",
+    "derive_real_data.py",
+    "failure_signal.py",
+    "run_benchmark.py",
+    "tune_fpfh.py",
+    "voxel_advice.py",
+)
+
+
+def run(script: str, *args, cwd: Path, code: int = 0) -> str:
+    """Run ``eval/<script>`` with ``args`` in ``cwd``; check its exit code is ``code``
+    and return its standard output."""
+    done = subprocess.run(
+        [sys.executable, str(EVAL / script), *map(str, args)], cwd=cwd, capture_output=True,
+        text=True, timeout=600, env=os.environ | {"MPLBACKEND": "Agg"}, check=False)
+    assert done.returncode == code, (
+        f"{script} exited {done.returncode}, not {code}\n{done.stdout[-2000:]}\n"
+        f"{done.stderr[-4000:]}")
+    return done.stdout
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def table_rows(text: str, first: str) -> list[list[str]]:
+    """The cells of the Markdown table rows of ``text`` whose first cell is ``first``."""
+    rows = [[cell.strip() for cell in line.strip().strip("|").split("|")]
+            for line in text.splitlines() if line.startswith("|")]
+    return [row for row in rows if row[0] == first]
+
+
+@pytest.fixture(scope="session")
+def suites(tmp_path_factory) -> Path:
+    """The four suites of one instance each (seed 0), as ``run_benchmark.py`` makes them."""
+    from o3d_spectral.synthetic.suite import make_suite
+
+    root = tmp_path_factory.mktemp("suites")
+    for condition in CONDITIONS:
+        make_suite(condition, 1, 0, root / condition, progress=False)
+    return root
+
+
+@pytest.fixture(scope="module")
+def speed_run(suites, tmp_path_factory) -> tuple[Path, str]:
+    """``bench_speed.py`` on the full suite's instance: (its folder, its output)."""
+    out = tmp_path_factory.mktemp("bench_speed")
+    printed = run("bench_speed.py", "--suites", suites, "--groups", "full", "--limit", 1,
+                  "--repeats", 1, "--out", out, cwd=out)
+    return out, printed
+
+
+@pytest.fixture(scope="module")
+def real_run(tmp_path_factory) -> Path:
+    """``bench_real.py`` on one YCB-Video crop, one rotation, no normals: its folder."""
+    out = tmp_path_factory.mktemp("bench_real")
+    run("bench_real.py", "--out", out, "--rotations", 1, "--workers", 1, "--groups",
+        "ycbv_crop", "--modes", "none", "--limit", 1, cwd=out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def benchmark_run(suites, tmp_path_factory) -> Path:
+    """``run_benchmark.py`` with ``spectral_global`` on the four tiny suites: its folder
+    (``run``, ``report``, ``results.md``)."""
+    out = tmp_path_factory.mktemp("run_benchmark")
+    (out / "results.md").write_text(
+        "# Results\n<!-- BEGIN GENERATED: by run_benchmark.py -->\nold\n"
+        "<!-- END GENERATED -->\nkept\n")
+    run("run_benchmark.py", "--n", 1, "--workers", 1, "--methods", "spectral_global",
+        "--suites-dir", suites, "--out", out / "run", "--figures", out / "report",
+        "--docs", out / "results.md", cwd=out)
+    return out
+
+
+def test_every_eval_script_has_a_tiny_run():
+    assert {p.name for p in EVAL.glob("*.py")} == set(SCRIPTS)
+    tests = {name for name in globals() if name.startswith("test_")}
+    assert {f"test_{Path(s).stem}" for s in SCRIPTS} <= tests
+
+
+def test_bench_far(tmp_path):
+    run("bench_far.py", "--cases", "mustard_model", "--distances", 0, 1000, "--out",
+        tmp_path / "far.md", cwd=tmp_path)
+    text = (tmp_path / "far.md").read_text()
+    assert text.startswith("**mustard_model**")
+    assert [len(table_rows(text, d)) for d in ("0", "1000", "spread")] == [1, 1, 1]
+    assert len(table_rows(text, "spread")[0]) == 5
+
+
+def test_bench_iteration(tmp_path):
+    printed = run("bench_iteration.py", "--iterations", 3, "--runs", 1, cwd=tmp_path)
+    assert re.search(r"one iteration \(median\)\s+\d+\.\d\d", printed)
+    assert re.search(r"two 3D FFTs of the same grid\s+\d+\.\d\d", printed)
+    assert "iteration / two FFTs = " in printed
+
+
+def test_bench_large(tmp_path):
+    printed = run("bench_large.py", "--points", 20000, "--profile", cwd=tmp_path)
+    assert re.search(r"^20000 points: [\d.]+ s; error [\d.]+ deg, [\d.]+ mm; fitness", printed,
+                     re.MULTILINE)
+    assert re.search(r"^  climb\s+[\d.]+ s$", printed, re.MULTILINE)
+
+
+def test_bench_prepared(suites, tmp_path):
+    from o3d_spectral.synthetic.suite import load_suite
+
+    name = load_suite(suites / "partial")[0].object
+    printed = run("bench_prepared.py", "--suite", suites / "partial", "--object", name,
+                  "--repeats", 1, cwd=tmp_path)
+    assert [row[:3] for row in table_rows(printed, name)] == [[name, "given", "1"]]
+    assert re.search(r"prepared=True: [\d.]+ s, \d of 1 registered", printed)
+
+
+def test_bench_pyramid(suites, tmp_path):
+    printed = run("bench_pyramid.py", "--groups", "full", "--suites", suites, "--limit", 1,
+                  "--rotations", 1, "--counts", 8, "--view-pairs", 0, cwd=tmp_path)
+    recall = [row for row in (r.split("|") for r in printed.splitlines())
+              if row[1:2] and row[1].strip().startswith("model and view (")]
+    assert [row[2].strip() for row in recall] == ["4", "2", "1"]
+    assert re.fullmatch(r"[01]/1", table_rows(printed, "8")[0][1])
+
+
+def test_bench_real(real_run):
+    rows = read_csv(real_run / "rows.csv")
+    assert [(r["group"], r["mode"], r["method"]) for r in rows] == [
+        ("ycbv_crop", "none", "spectral_global"), ("ycbv_crop", "none", "fpfh_ransac")]
+    assert {"seconds", "rotation_error_deg", "success", "transformation",
+            "confidence"} <= rows[0].keys()
+    assert len(rows[0]["transformation"].split()) == 16
+    summary = read_csv(real_run / "summary.csv")
+    assert [(s["group"], s["n"]) for s in summary] == [("ycbv_crop", "1")]
+    assert table_rows((real_run / "summary.md").read_text(), "ycbv_crop")
+
+
+def test_bench_report(tmp_path):
+    printed = run("bench_report.py", "--out", tmp_path, "--instances", 1, cwd=tmp_path)
+    assert re.match(r"report of 48 rows: [\d.]+ s wall", printed)
+    assert (tmp_path / "fake_run" / "results.jsonl").read_text().count("\n") == 48
+    assert (tmp_path / "report" / "report.md").is_file()
+
+
+def test_bench_scaling(tmp_path):
+    run("bench_scaling.py", "--points", 1000, "--voxels", 0.016, "--out", tmp_path,
+        "--figure", tmp_path / "scaling.png", cwd=tmp_path)
+    rows = read_csv(tmp_path / "scaling.csv")
+    assert [(r["sweep"], r["voxel_m"]) for r in rows] == [("points", "0.008"),
+                                                          ("voxel", "0.016")]
+    assert rows[0]["target_points"] == "1000" and "spectral_global_s" in rows[0]
+    assert (tmp_path / "scaling.png").stat().st_size > 0
+
+
+def test_bench_speed(speed_run):
+    out, printed = speed_run
+    rows = read_csv(out / "instances.csv")
+    assert [r["group"] for r in rows] == ["full"] * len(rows)
+    assert rows[0]["method"] == "spectral_global" and len({r["method"] for r in rows}) >= 2
+    assert {"seconds", "success", "fitness", "low_fit_warning", "confirmed"} <= rows[0].keys()
+    summary = read_csv(out / "summary.csv")
+    assert [(s["group"], s["n"]) for s in summary] == [("full", "1")]
+    assert table_rows(printed, "full") and (out / "summary.md").is_file()
+
+
+def test_bench_stages(suites, tmp_path):
+    from o3d_spectral.stages import GLOBAL_STAGES
+
+    printed = run("bench_stages.py", "--suites", suites, "--groups", "full", "--limit", 1,
+                  "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "stages.csv")
+    assert [r["group"] for r in rows] == ["full"]
+    assert {*GLOBAL_STAGES, "total"} <= rows[0].keys()
+    assert table_rows(printed, "full (1)")
+
+
+def test_bench_width(tmp_path):
+    run("bench_width.py", "--widths", 0.25, "--seeds", 1, "--out", tmp_path, "--figure",
+        tmp_path / "width.png", cwd=tmp_path)
+    rows = read_csv(tmp_path / "width.csv")
+    assert [r["method"] for r in rows][0] == "spectral_global" and len(rows) >= 2
+    assert {r["width_m"] for r in rows} == {"0.25"}
+    assert (tmp_path / "width.png").stat().st_size > 0
+    run("bench_width.py", "--plot", tmp_path / "width.csv", "--figure", tmp_path / "again.png",
+        cwd=tmp_path)
+    assert (tmp_path / "again.png").stat().st_size > 0
+
+
+def test_bop_poses(tmp_path):
+    from o3d_spectral.cli import main
+
+    bop_run = tmp_path / "bop_run"
+    assert main(["-q", "eval", "--bop", str(BOP_YCBV), "--objects", "14", "--limit", "1",
+                 "--methods", "icp_point_to_plane", "--out", str(bop_run)]) == 0
+    printed = run("bop_poses.py", bop_run, "--dataset", BOP_YCBV, "--object", 14,
+                  cwd=tmp_path)
+    methods = [row[:2] for row in table_rows(printed, "bop_ycbv_test_crop")
+               + table_rows(printed, "bop_ycbv_test_frame")]
+    assert methods == [["bop_ycbv_test_crop", "icp_point_to_plane"],
+                       ["bop_ycbv_test_frame", "icp_point_to_plane"]]
+    # the true pose itself: no VSD error, every recall 1
+    assert table_rows(printed, "0") == [["0", "0.00 / 0.00 / 0.00", "0.0", "1.00", "1.00",
+                                         "1.00"]]
+    assert all(len(table_rows(printed, turn)) == 1 for turn in ("5", "10", "20", "45", "90",
+                                                                 "180"))
+
+
+def test_c1_local(tmp_path):
+    printed = run("c1_local.py", "--cases", 1, cwd=tmp_path)
+    assert re.match(r"C-1 local, moved copy, default settings: \d/6 = ", printed)
+    names = [line.split()[0] for line in printed.splitlines()[2:]]
+    assert names == ["mustard_bottle", "power_drill", "mug", "cracker_box", "banana",
+                     "scissors", "all"]
+
+
+def test_check_unchanged(suites, tmp_path):
+    """A recording, then a comparison with it changed by 1 mm in one call: that call's
+    instance is reported over the tolerance (exit 1), the other's difference is 0."""
+    run("check_unchanged.py", "--suites", suites, "--groups", "full", "--count", 1,
+        "--record", tmp_path / "recorded.npz", cwd=tmp_path)
+    recorded = dict(np.load(tmp_path / "recorded.npz"))
+    assert recorded["full/local"].shape == recorded["full/global"].shape == (1, 4, 4)
+    changed = recorded | {"full/local": recorded["full/local"] + 1e-3}
+    np.savez_compressed(tmp_path / "changed.npz", **changed)
+    printed = run("check_unchanged.py", "--suites", suites, "--groups", "full", "--count", 1,
+                  "--compare", tmp_path / "changed.npz", "--save", tmp_path / "again.npz",
+                  cwd=tmp_path, code=1)
+    assert re.search(r"full/global\s+1 instances  max \|difference\| 0  \(0 over 1e-09\)",
+                     printed)
+    assert re.search(r"full/local\s+1 instances  max \|difference\| 0.001  \(1 over", printed)
+    again = np.load(tmp_path / "again.npz")
+    for key in ("full/local", "full/global"):  # the same poses, run after run
+        np.testing.assert_array_equal(again[key], recorded[key])
+
+
+def test_confidence_precision(benchmark_run, real_run, tmp_path):
+    printed = run("confidence_precision.py", "--run", benchmark_run / "run", "--real",
+                  real_run / "rows.csv", cwd=tmp_path)
+    for group in (*CONDITIONS, "ycbv_crop (none)"):
+        assert table_rows(printed, group)[0][1] == "1"
+    assert [row[1] for row in table_rows(printed, "all")] == ["4", "1"]
+
+
+def test_derive_real_data(tmp_path):
+    from o3d_spectral.harness.real import YCBV_CLASSES, real_dir
+    from tests.real_originals import write_originals
+
+    originals = write_originals(tmp_path / "originals")
+    out = tmp_path / "real"
+    run("derive_real_data.py", originals, "--out", out, cwd=tmp_path)
+    printed = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    bundled = sorted(str(p.relative_to(real_dir())) for p in real_dir().rglob("*")
+                     if p.is_file() and p.name != "README.md")
+    assert printed == bundled
+
+    def points(path: Path) -> np.ndarray:
+        return np.asarray(o3d.io.read_point_cloud(str(path)).points)
+
+    frame = Path("ycbv") / "0000_000001"
+    same = [Path("dragon") / "dragonStandRight_24.ply", *(Path("ycbv") / "models" / f"{n}.ply"
+                                                         for n in YCBV_CLASSES),
+            frame / f"{YCBV_CLASSES[0]}_crop.ply"]
+    for name in same:  # float32 points in, the same float32 points out
+        np.testing.assert_array_equal(points(out / name), points(real_dir() / name))
+    scene = points(out / frame / "scene_2mm.ply")
+    assert 0 < len(scene) < len(points(originals / "ycbv" / "0000_000001" / "scene.ply"))
+
+
+def test_failure_signal(speed_run, tmp_path):
+    """The rows of bench_speed, and a crafted group of two wrong poses, one flagged by the
+    warning, both by fitness under 0.5 and 0.7: the table counts them."""
+    rows = read_csv(speed_run[0] / "instances.csv")
+    crafted = [rows[0] | {"group": "crafted", "success": "False", "fitness": fitness,
+                          "low_fit_warning": warned}
+               for fitness, warned in (("0.4", "True"), ("0.45", "False"))]
+    path = tmp_path / "instances.csv"
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows + crafted)
+    printed = run("failure_signal.py", path, cwd=tmp_path)
+    assert table_rows(printed, "crafted") == [
+        ["crafted", "2", "2", "low-fit warning", "1", "100%", "50%"],
+        ["crafted", "2", "2", "fitness < 0.3", "0", "-", "0%"],
+        ["crafted", "2", "2", "fitness < 0.5", "2", "100%", "100%"],
+        ["crafted", "2", "2", "fitness < 0.7", "2", "100%", "100%"],
+    ]
+    assert [row[1] for row in table_rows(printed, "full")] == ["1"] * 4
+
+
+def test_run_benchmark(benchmark_run):
+    rows = read_csv(benchmark_run / "run" / "results.csv")
+    assert sorted((r["suite"], r["method"]) for r in rows) == sorted(
+        (c, "spectral_global") for c in CONDITIONS)
+    docs = (benchmark_run / "results.md").read_text()
+    assert "\nold\n" not in docs and docs.endswith("<!-- END GENERATED -->\nkept\n")
+    assert "Produced by `python eval/run_benchmark.py --n 1 " in docs
+    assert (benchmark_run / "report" / "report.md").is_file()
+
+
+def test_tune_fpfh(suites, tmp_path):
+    from o3d_spectral.harness.peers import FPFH_TUNING_GRID
+
+    printed = run("tune_fpfh.py", "--suites", suites / "full", "--per-suite", 1, "--workers", 1,
+                  cwd=tmp_path)
+    lines = printed.splitlines()
+    pairs = len(list(FPFH_TUNING_GRID.values())[0]) * len(list(FPFH_TUNING_GRID.values())[1])
+    assert lines[0].split()[:3] == ["feature_r", "normal_r", "full"]
+    assert len(lines) == pairs + 2
+    assert re.match(r"best on 1 tuning instances: feature_radius_voxels=[\d.]+, "
+                    r"normal_radius_voxels=[\d.]+$", lines[-1])
+
+
+def test_voxel_advice(suites, tmp_path):
+    out = tmp_path / "out"
+    printed = run("voxel_advice.py", "--suites", suites, "--groups", "full", "--limit", 1,
+                  "--out", out, cwd=tmp_path)
+    rows = read_csv(out / "rows.csv")
+    assert [(r["group"], r["choice"]) for r in rows] == [("full", "hand"),
+                                                         ("full", "suggested")]
+    assert rows[0]["voxel_m"] == "0.008"
+    tables = (out / "tables.md").read_text()
+    assert printed == tables and len(table_rows(tables, "full")) == 3
+    shutil.copyfile(out / "rows.csv", tmp_path / "rows.csv")
+    assert run("voxel_advice.py", "--table", tmp_path / "rows.csv", cwd=tmp_path) == tables
