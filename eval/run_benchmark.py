@@ -2,8 +2,11 @@
 
 Generates the four default suites when missing (``--n`` instances each, seed ``--seed``),
 runs ``o3d-spectral eval`` with every registered method (resumes an interrupted run), writes
-the tables and plots with ``o3d-spectral report`` and replaces the generated part of
-``docs/results.md`` (between its ``BEGIN GENERATED`` and ``END GENERATED`` markers).
+the tables and plots with ``o3d-spectral report`` into ``--figures``, and, with ``--docs``,
+replaces the generated part of that Markdown file (between its ``BEGIN GENERATED`` and
+``END GENERATED`` markers). The documentation's tables are written from the stored
+summary instead: copy ``FIGURES/summary.csv`` to ``docs/data/suites_all_methods.csv``, note
+the commit in ``docs/data/sources.json`` and run ``python tools/docs_figures.py``.
 
     python eval/run_benchmark.py --workers 2                    # the documented run
     python eval/run_benchmark.py --n 2 --suites-dir out/tiny/suites --out out/tiny/run \\
@@ -45,8 +48,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--docs",
         type=Path,
-        default=ROOT / "docs" / "results.md",
-        help="Markdown file whose generated part is replaced",
+        help="a Markdown file whose generated part is replaced (default: none)",
     )
     args = parser.parse_args(argv)
     if args.n < 1:
@@ -106,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     if cli(eval_args) != 0:
         return 1
     eval_seconds = time.perf_counter() - start
-    prefix = Path(os.path.relpath(args.figures, args.docs.parent)).as_posix() + "/"
+    docs_folder = args.figures.parent if args.docs is None else args.docs.parent
+    prefix = Path(os.path.relpath(args.figures, docs_folder)).as_posix() + "/"
     written = make_report(args.out, args.figures, link_prefix=prefix)
     generated = "\n".join(
         [
@@ -117,8 +120,13 @@ def main(argv: list[str] | None = None) -> int:
             written["report.md"].read_text(),
         ]
     )
-    fill_docs(args.docs, generated)
-    print(f"wrote {args.docs} and {len(written)} files in {args.figures}")
+    if args.docs is None:
+        print(f"report in {args.figures}; for the documentation: copy its summary.csv to "
+              "docs/data/suites_all_methods.csv and run python tools/docs_figures.py")
+    else:
+        fill_docs(args.docs, generated)
+        print(f"wrote {args.docs}")
+    print(f"wrote {len(written)} files in {args.figures}")
     return 0
 
 

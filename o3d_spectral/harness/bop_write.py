@@ -3,7 +3,8 @@ models with ``models_info.json``, and depth images with their annotations.
 
 Lengths are given in metres and written in BOP's millimetres; depth PNGs are 16-bit with
 a ``depth_scale`` (millimetres per unit) of 0.1 by default, so depth up to 6.5 m is kept to
-0.1 mm. Used by ``eval/convert_benchmarks.py`` and by the tests' built datasets.
+0.1 mm. Used by ``o3d-spectral convert`` (:mod:`o3d_spectral.harness.converters`) and by
+the tests' built datasets.
 """
 
 from __future__ import annotations
