@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 
 from .io.cloud import as_arrays, dense_bounds
 from .io.rows import bounds
+from .io.units import check_same_units
 
 __all__ = ["suggest_voxel_size", "spacing", "SPACINGS", "VOXELS_ACROSS", "MAX_VOXELS_ACROSS",
            "NEIGHBOURS", "SAMPLES", "MAX_TREE_POINTS"]
@@ -130,8 +131,10 @@ def suggest_voxel_size(source: object, target: object) -> float:
     TypeError
         For an unsupported cloud type, or an array that does not hold real numbers.
     ValueError
-        For an empty cloud, NaN or infinite coordinates, an array of the wrong shape, or a
-        cloud whose points all coincide; each message names the argument.
+        For an empty cloud, NaN or infinite coordinates, an array of the wrong shape, a
+        cloud whose points all coincide, each message naming the argument; or clouds whose
+        extents differ by 50x or more (:func:`o3d_spectral.io.units.check_same_units`: in
+        different units, or a scene to crop around the object), the message naming both.
 
     Examples
     --------
@@ -146,6 +149,7 @@ def suggest_voxel_size(source: object, target: object) -> float:
         if not spacings[name] > 0.0:
             raise ValueError(f"{name}: its points all coincide (no surface to register)")
         sides[name] = _bounds(points, _GAP_SPACINGS * spacings[name])
+    check_same_units(clouds["source"], clouds["target"])  # no size suits both
     densest = SPACINGS * max(spacings.values())
     diameters = sorted(float(np.linalg.norm(s)) for s in sides.values())
     return float(max(densest, diameters[0] / VOXELS_ACROSS,
