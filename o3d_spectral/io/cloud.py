@@ -23,8 +23,10 @@ __all__ = [
     "MIN_POINTS", "extent", "dense_bounds",
 ]
 
-#: Fewest points (after down-sampling to the voxel size) the method accepts.
+#: Fewest points, and fewest occupied voxels after down-sampling, the method accepts.
 MIN_POINTS = 10
+#: Normals this long or shorter are not used (an all-zero set is refused).
+MIN_NORMAL = 1e-6
 #: :func:`dense_bounds`: points beyond a gap of this many voxels along an axis, holding at
 #: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
 ISOLATED_GAP = 10.0
@@ -67,7 +69,9 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
     TypeError
         For an unsupported type.
     ValueError
-        For an empty cloud, a wrong array shape, or non-finite coordinates or normals.
+        For a cloud of fewer than :data:`MIN_POINTS` points (an empty one suggests sampling
+        a mesh), a wrong array shape, non-finite coordinates or normals, or normals that
+        are all zero.
     """
     if isinstance(cloud, CloudArrays):  # already converted and checked
         return cloud
@@ -94,8 +98,8 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
         normals = np.ascontiguousarray(array[:, 3:]) if array.shape[1] == 6 else None
     else:
         raise TypeError(f"{name}: expected {CloudLike}, got {type(cloud).__name__}")
-    if len(points) == 0:
-        raise ValueError(f"{name} is empty")
+    if len(points) < MIN_POINTS:
+        raise ValueError(_too_few(name, len(points)))
     bad = ~every(np.isfinite(points))
     if bad.any():
         raise ValueError(
@@ -108,7 +112,22 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
         bad = ~every(np.isfinite(normals))
         if bad.any():
             raise ValueError(f"{name} has {int(bad.sum())} normals with NaN or infinite entries")
+        if not np.any(lengths(normals) > MIN_NORMAL):
+            raise ValueError(
+                f"{name}: all its {len(normals)} normals are zero; give unit normals, or "
+                "none (they are then estimated)"
+            )
     return CloudArrays(points, normals)
+
+
+def _too_few(name: str, count: int) -> str:
+    """The message refusing the cloud ``name`` of ``count`` points (under :data:`MIN_POINTS`)."""
+    sample = "o3d.io.read_triangle_mesh(path).sample_points_uniformly(20000)"
+    if count == 0:
+        return (f"{name} is empty (no points; o3d.io.read_point_cloud reads none from a mesh "
+                f"file: sample the mesh, {sample})")
+    return (f"{name} has {count} points; the method needs at least {MIN_POINTS}: pass a "
+            f"denser cloud (of a mesh, a sample of its surface, not its vertices: {sample})")
 
 
 def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
@@ -247,12 +266,12 @@ class PreparedCloud:
     reading: CloudReading
 
 
-def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str) -> None:
-    """Enough occupied voxels, and not all on one line."""
+def _check_shape(points: NDArray[np.float64], voxel_size: float, name: str, count: int) -> None:
+    """Enough occupied voxels (of the cloud's ``count`` points), and not all on one line."""
     if len(points) < MIN_POINTS:
         raise ValueError(
-            f"{name} occupies {len(points)} voxels of {voxel_size} m; the method needs "
-            f"at least {MIN_POINTS}: use a smaller voxel_size or a denser cloud"
+            f"{name} occupies {len(points)} voxels of {voxel_size:.4g} m (its {count} points); "
+            f"the method needs at least {MIN_POINTS}: use a smaller voxel_size or a denser cloud"
         )
     spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
     if spread[1] < 1e-3 * spread[0] or spread[1] < 0.5 * voxel_size:
@@ -366,7 +385,7 @@ def prepare(
         normals_from = "given" if rule is None else "re-oriented"
     fine = to_legacy(arrays).voxel_down_sample(egi_voxel_size or voxel_size / 4.0)
     coarse = fine.voxel_down_sample(voxel_size)
-    _check_shape(np.asarray(coarse.points), voxel_size, name)
+    _check_shape(np.asarray(coarse.points), voxel_size, name, len(arrays.points))
     if arrays.normals is None:
         radius = 2.5 * voxel_size if normal_radius is None else normal_radius
         fine.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=30))
@@ -386,7 +405,7 @@ def prepare(
     else:
         normals, normal_points = arrays.normals, arrays.points
     length = lengths(normals)
-    keep = np.flatnonzero(length > 1e-6)
+    keep = np.flatnonzero(length > MIN_NORMAL)
     if len(keep) < MIN_POINTS:
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
     if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)

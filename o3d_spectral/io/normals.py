@@ -275,9 +275,12 @@ def faces(
     points: ArrayLike, normals: ArrayLike, place: ArrayLike, share: float = VIEW_SHARE
 ) -> bool:
     """Whether at least ``share`` of the (non-zero) ``normals`` (N, 3) at ``points``
-    (metres) face ``place`` (metres, shape (3,)): a view seen from there."""
+    (metres) face ``place`` (metres, shape (3,)): a view seen from there (False when none
+    is non-zero)."""
     n = np.asarray(normals, dtype=np.float64)
     usable = some(n != 0.0)
+    if not usable.any():
+        return False
     rays = np.asarray(place, dtype=np.float64) - np.asarray(points, dtype=np.float64)
     return bool(np.mean(np.einsum("ij,ij->i", n, rays)[usable] > 0.0) >= share)
 
