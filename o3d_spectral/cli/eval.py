@@ -185,6 +185,7 @@ def eval_command(args: argparse.Namespace) -> int:
         require_modules("eval --cluster", "distributed")
     from o3d_spectral.cli import UsageError, results, show_progress
     from o3d_spectral.harness import SuccessCriteria, run_eval
+    from o3d_spectral.harness.report import run_summary
     from o3d_spectral.harness.selection import parse_shard
 
     if args.shard is not None:
@@ -216,5 +217,6 @@ def eval_command(args: argparse.Namespace) -> int:
         print(f"o3d-spectral eval: interrupted; the rows done so far stay in {args.out} "
               "(run the same command again to resume)", file=sys.stderr)
         return 130
+    print(run_summary(args.out), file=results())
     print(f"wrote {table} in {time.perf_counter() - start:.1f} s", file=results())
     return 0

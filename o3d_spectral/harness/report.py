@@ -36,7 +36,7 @@ from o3d_spectral.harness.writers import to_markdown, write_table
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["make_report"]
+__all__ = ["make_report", "run_summary"]
 
 
 #: Columns of a successful registration's row (:func:`~o3d_spectral.harness.metrics.
@@ -52,6 +52,44 @@ def _with_metric_columns(frame: pd.DataFrame) -> pd.DataFrame:
     tables show 0% success rather than fail."""
     missing = [c for c in _METRIC_COLUMNS if c not in frame]
     return frame.assign(**dict.fromkeys(missing, float("nan"))) if missing else frame
+
+
+#: The summary's columns ``eval`` prints when it ends (:func:`run_summary`).
+_RUN_SUMMARY_COLUMNS = ("suite", "method", "n", "success (%)", "median time (s)", "failed")
+
+
+def _aligned(markdown: str) -> str:
+    """A Markdown table (:func:`~o3d_spectral.harness.writers.to_markdown`) with its columns
+    padded to one width, numbers right-aligned: readable as plain text too."""
+    rows = [[cell.strip() for cell in line.strip()[1:-1].split("|")]
+            for line in markdown.splitlines()]
+    right = [cell.endswith(":") for cell in rows[1]]
+    widths = [max(3, *(len(cell) for k, cell in enumerate(column) if k != 1))  # 1: ---
+              for column in zip(*rows, strict=True)]
+    rows[1] = ["-" * (w - 1) + (":" if r else "-") for w, r in zip(widths, right, strict=True)]
+    lines = [" | ".join(cell.rjust(w) if r else cell.ljust(w)
+                        for cell, w, r in zip(row, widths, right, strict=True))
+             for row in rows]
+    return "".join(f"| {line} |\n" for line in lines)
+
+
+def run_summary(results: str | Path) -> str:
+    """The success rate and median time of each method on each suite of a run, as the
+    report's summary (:func:`~o3d_spectral.harness.tables.summary_table`) cut to those
+    columns, its size and its failures: a Markdown table aligned as plain text (what
+    ``o3d-spectral eval`` prints when it ends).
+
+    Parameters
+    ----------
+    results : str or Path
+        A run folder written by :func:`~o3d_spectral.harness.runner.run_eval`, or its
+        ``results.jsonl``.
+    """
+    table = summary_table(_with_metric_columns(load_results(Path(results))))
+    columns = list(_RUN_SUMMARY_COLUMNS)
+    cut = Table(table.name, table.caption, table.frame[columns],
+                {c: table.formats[c] for c in columns})
+    return _aligned(to_markdown(cut))
 
 
 def _run_config(results: Path) -> dict:
