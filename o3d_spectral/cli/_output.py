@@ -1,7 +1,8 @@
 """What a command writes where, while it runs: its results to the standard output it was
 started with (:func:`results`), everything else to stderr (Open3D's log, whether printed
 by its Python module through ``sys.stdout`` or by C++ to file descriptor 1), the package
-logger's records on stderr, and on a terminal a :class:`StatusLine` fed by them."""
+logger's records on stderr, and on a terminal a :class:`StatusLine` fed by them. Open3D's
+lines and the package's records never share a line (:class:`WholeLines`)."""
 
 from __future__ import annotations
 
@@ -39,6 +40,51 @@ def _flush_c_stdout() -> None:
 
 #: Where a running command writes its results: the standard output it was started with.
 _results: TextIO | None = None
+#: Held while a whole line is written to stderr (:class:`WholeLines`, the log handler).
+_stderr_lock = threading.RLock()
+
+
+class WholeLines:
+    """A text stream writing to ``stream`` only whole lines, each thread's apart.
+
+    Open3D's Python module prints a message and its newline in two writes, from whichever
+    thread logs: another thread's text written between them (a log record, another
+    Open3D message) would end up on the message's line. Each thread's text is kept
+    until it ends a line; whole lines are written holding the lock the package's log
+    handler holds too. :meth:`flush` writes the calling thread's unfinished line (and
+    :meth:`drain` every thread's).
+    """
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self._pending: dict[int, str] = {}
+
+    def write(self, text: str) -> int:
+        key = threading.get_ident()
+        pending = self._pending.pop(key, "") + text
+        end = pending.rfind("\n") + 1
+        if end:
+            with _stderr_lock:
+                self.stream.write(pending[:end])
+        if end < len(pending):
+            self._pending[key] = pending[end:]
+        return len(text)
+
+    def flush(self) -> None:
+        rest = self._pending.pop(threading.get_ident(), "")
+        with _stderr_lock:
+            self.stream.write(rest)
+            self.stream.flush()
+
+    def drain(self) -> None:
+        """Write every thread's unfinished line, each ended."""
+        with _stderr_lock:
+            for key in list(self._pending):
+                self.stream.write(self._pending.pop(key) + "\n")
+            self.stream.flush()
+
+    def __getattr__(self, name: str) -> object:  # encoding, fileno, isatty, ...
+        return getattr(self.stream, name)
 
 
 def results() -> TextIO:
@@ -83,10 +129,12 @@ def stdout_for_results_only() -> Iterator[None]:
         line_buffered = getattr(saved, "line_buffering", False)
         wrapper = open(real, "w", buffering=1 if line_buffered else -1,  # noqa: SIM115
                        encoding=saved.encoding, errors=saved.errors, closefd=False)
-    _results, sys.stdout = wrapper or saved, sys.stderr
+    lines = WholeLines(sys.stderr)
+    _results, sys.stdout = wrapper or saved, lines
     try:
         yield
     finally:
+        lines.drain()
         _flush_c_stdout()
         if wrapper is not None:
             wrapper.close()  # flushed; the descriptor stays open (closefd=False)
@@ -169,19 +217,23 @@ class StatusLine:
 
 
 class _StderrHandler(logging.StreamHandler):
-    """Records on stderr, the status line (if any) erased first."""
+    """Records on stderr, each on a line of its own: after what C code printed to stdout
+    so far (its buffer flushed), never inside a line Open3D is printing
+    (:class:`WholeLines`), the status line (if any) erased first."""
 
     def __init__(self, stream: TextIO, status: StatusLine | None) -> None:
         super().__init__(stream)
         self.status = status
 
     def emit(self, record: logging.LogRecord) -> None:
-        if self.status is None:
-            super().emit(record)
-            return
-        with self.status.lock:
-            self.status.erase()
-            super().emit(record)
+        _flush_c_stdout()
+        with _stderr_lock:
+            if self.status is None:
+                super().emit(record)
+                return
+            with self.status.lock:
+                self.status.erase()
+                super().emit(record)
 
 
 class _StatusFeed(logging.Handler):
