@@ -302,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"fitness {result.fitness:.4f}  fit {result.fit:.4f}  "
             f"inlier_rmse {result.inlier_rmse:.6f} m  "
-            f"(at {result.max_correspondence_distance} m)  converged {result.converged}  "
+            f"(at {result.max_correspondence_distance:.4g} m)  converged {result.converged}  "
             f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
             + (f"  voxel_size {voxel_size:.4g} m (auto)" if auto else ""), file=out,
         )
