@@ -28,6 +28,8 @@ from ._lazy import lazy_attributes
 
 if TYPE_CHECKING:  # the names below, for type checkers; imported on first access at run time
     from .law import IterationRecord
+    from .multiway import registration_multiway
+    from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
     from .options import (
         CloudOption,
         GlobalSearchOption,
@@ -45,6 +47,7 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
 __all__ = [
     "registration_spectral",
     "registration_spectral_global",
+    "registration_multiway",
     "prepare",
     "prepare_target",
     "suggest_voxel_size",
@@ -56,6 +59,9 @@ __all__ = [
     "CloudOption",
     "SpectralConvergenceCriteria",
     "SpectralRegistrationResult",
+    "MultiwayOption",
+    "MultiwayResult",
+    "PairwiseRecord",
     "IterationRecord",
     "SpectralStepper",
     "MovingCloud",
@@ -69,6 +75,10 @@ __getattr__ = lazy_attributes(
     {
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
+        "registration_multiway": "multiway",
+        "MultiwayOption": "multiway_options",
+        "MultiwayResult": "multiway_options",
+        "PairwiseRecord": "multiway_options",
         "prepare": "prepared",
         "prepare_target": "prepared_target",
         "PreparedTarget": "prepared_target",

@@ -1,0 +1,335 @@
+"""Many clouds of one object or scene, in any frames, registered into one model.
+
+:func:`registration_multiway` registers pairs of the clouds with
+:func:`o3d_spectral.registration_spectral_global` (no initial pose needed), keeps the pairs
+whose result clearly fits, places every cloud by a maximum spanning tree of those pairs
+weighted by their ``fit``, and optimises the poses over all kept pairs with Open3D's pose
+graph (Levenberg-Marquardt with a line process that prunes wrong edges). A refinement then
+registers again, by point-to-plane ICP from the optimised poses, every pair that overlaps
+there, and optimises that graph. ``docs/multiway.md`` describes the steps and their measure.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from collections.abc import Sequence
+
+import numpy as np
+import open3d as o3d
+from numpy.typing import NDArray
+
+from ._checks import check_instance, check_voxel_size
+from .io.cloud import CloudArrays, as_arrays
+from .io.units import MAX_EXTENT_RATIO, span
+from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
+from .parallel import one_open3d_thread, thread_map
+from .prepared import PreparedSource, prepare
+from .prepared_target import PreparedTarget, prepare_target
+from .refinement import point_to_plane_icp
+from .registration import registration_spectral_global
+
+__all__ = ["registration_multiway", "MultiwayOption", "MultiwayResult", "PairwiseRecord"]
+
+reg = o3d.pipelines.registration
+#: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
+#: information matrix (6, 6), uncertain).
+Edge = tuple[int, int, NDArray[np.float64], NDArray[np.float64], bool]
+#: The refinement's second ICP: on the clouds down-sampled to this many voxels, with
+#: correspondences up to :data:`FINE_DISTANCE` voxels (the registration's own polish).
+FINE_CELL, FINE_DISTANCE = 0.25, 0.4
+
+
+def registration_multiway(
+    clouds: Sequence[object], voxel_size: float, *, option: MultiwayOption | None = None
+) -> MultiwayResult:
+    """Register ``clouds`` (in any frames, no initial poses) into the first one's frame.
+
+    1. **pairs**: every pair of clouds up to ``option.max_all_pairs`` clouds, else each
+       with its ``option.neighbours`` successors, registered by
+       :func:`o3d_spectral.registration_spectral_global` (each cloud prepared once as a
+       source and once as a target) on ``option.workers`` threads;
+    2. **selection**: a pair becomes an edge when its ``fit`` is high enough and clearly
+       ahead of its ``rival_fit``; odometry-like (never pruned) when it is very high,
+       uncertain otherwise (:class:`MultiwayOption`); each edge's information matrix is
+       Open3D's ``get_information_matrix_from_point_clouds`` on the down-sampled clouds;
+    3. **tree**: the initial poses chained along a maximum spanning tree of the edges
+       weighted by ``fit``, from the first cloud; clouds it does not reach are
+       ``unconnected``;
+    4. **optimisation**: Open3D's ``global_optimization`` (Levenberg-Marquardt, line
+       process with ``option.edge_prune_threshold``, reference node 0);
+    5. **refinement** (``option.refine``): every pair overlapping at the optimised poses
+       registered again by point-to-plane ICP from them, and the graph optimised again.
+
+    Parameters
+    ----------
+    clouds : sequence of PointCloud, tensor PointCloud or ndarray
+        Two or more clouds in metres (``open3d.geometry.PointCloud``,
+        ``open3d.t.geometry.PointCloud``, or numpy arrays of shape (N, 3), or (N, 6) with
+        normals), each in its own frame. None is modified.
+    voxel_size : float
+        Voxel edge, metres, of every pairwise registration.
+    option : MultiwayOption, optional
+        Pairs, selection, optimisation, threads and progress.
+
+    Returns
+    -------
+    MultiwayResult
+        ``poses[k]`` maps cloud ``k`` into the first cloud's frame (4x4, float64, rigid;
+        the identity for the first), None for a cloud in ``unconnected``.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For fewer than two clouds, a cloud the registration refuses (the message names
+        ``clouds[k]``), clouds whose extents differ by 50x or more (in different units;
+        the message names both clouds and extents), a bad ``voxel_size`` or option.
+
+    Examples
+    --------
+    >>> result = o3d_spectral.registration_multiway(scans, 0.005)  # doctest: +SKIP
+    >>> merged = [scan.transform(pose) for scan, pose in zip(scans, result.poses)]  # doctest: +SKIP
+    """
+    start = time.perf_counter()
+    voxel_size = check_voxel_size(voxel_size)
+    check_instance("option", option, MultiwayOption)
+    option = option or MultiwayOption()
+    arrays = _checked_clouds(clouds)
+    n = len(arrays)
+    sources, targets = _prepared(arrays, voxel_size, option.workers)
+    downs = [_down_sampled(s) for s in sources]
+    pairs = pair_list(n, option)
+    records = _register_pairs(sources, targets, pairs, voxel_size, option)
+    distance = option.distance_voxels * voxel_size
+    records = [_selected(r, option) for r in records]
+    kept = [r for r in records if r.kept]
+    tree = maximum_spanning_tree(n, [(r.source, r.target, r.fit) for r in kept])
+    poses = _chained(n, tree, {(r.source, r.target): r.transformation for r in kept})
+    nodes = tuple(k for k in range(n) if poses[k] is not None)
+    edges = [(r.source, r.target, r.transformation,
+              _information(downs, r.source, r.target, distance, r.transformation), r.uncertain)
+             for r in kept if r.source in nodes]
+    graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
+    if option.refine and len(nodes) > 1:
+        poses = _node_poses(graph, nodes, n)
+        certain = {(r.source, r.target) for r in kept if not r.uncertain}
+        fines = thread_map(lambda a: _fine(a, voxel_size), arrays, option.workers)
+        edges = _refined_edges(downs, fines, poses, pairs, set(tree) | certain, certain,
+                               voxel_size, option)
+        graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
+    return MultiwayResult(
+        poses=tuple(_node_poses(graph, nodes, n)), pose_graph=graph, nodes=nodes,
+        pairs=tuple(records), unconnected=tuple(k for k in range(n) if k not in nodes),
+        run_time=time.perf_counter() - start,
+    )
+
+
+def _checked_clouds(clouds: Sequence[object]) -> list[CloudArrays]:
+    """The clouds as checked arrays (copies); fewer than two, or extents differing by
+    :data:`o3d_spectral.io.units.MAX_EXTENT_RATIO` or more, refused naming ``clouds``."""
+    if isinstance(clouds, np.ndarray | o3d.geometry.PointCloud | o3d.t.geometry.PointCloud):
+        raise TypeError("clouds must be a sequence of clouds (a list), got one cloud")
+    try:
+        count = len(clouds)
+    except TypeError:
+        raise TypeError(f"clouds must be a sequence of clouds, got "
+                        f"{type(clouds).__qualname__}") from None
+    if count < 2:
+        raise ValueError(f"clouds must hold at least two clouds to register, got {count}")
+    arrays = [as_arrays(cloud, f"clouds[{k}]") for k, cloud in enumerate(clouds)]
+    spans = [span(a.points) for a in arrays]
+    small, large = int(np.argmin(spans)), int(np.argmax(spans))
+    if spans[small] > 0.0 and spans[large] >= MAX_EXTENT_RATIO * spans[small]:
+        raise ValueError(
+            f"clouds[{large}] spans {spans[large]:.3g} m and clouds[{small}] "
+            f"{spans[small]:.3g} m ({spans[large] / spans[small]:.0f}x): are the clouds in "
+            f"the same units (metres)? Extents differing by {MAX_EXTENT_RATIO:.0f}x or "
+            "more cannot be registered at one voxel size")
+    return arrays
+
+
+def _prepared(
+    arrays: list[CloudArrays], voxel_size: float, workers: int | None
+) -> tuple[list[PreparedSource], list[PreparedTarget]]:
+    """Each cloud prepared once as a source and once as a target."""
+    jobs = [(kind, a) for kind in (prepare, prepare_target) for a in arrays]
+    done = thread_map(lambda job: job[0](job[1], voxel_size), jobs, workers)
+    return done[:len(arrays)], done[len(arrays):]
+
+
+def _down_sampled(source: PreparedSource) -> o3d.geometry.PointCloud:
+    """The prepared cloud's points (one per voxel) with their mean normals."""
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(source.cloud.points))
+    cloud.normals = o3d.utility.Vector3dVector(source.cloud.point_normals)
+    return cloud
+
+
+def pair_list(n: int, option: MultiwayOption) -> list[tuple[int, int]]:
+    """The pairs ``(i, j)``, ``i < j``, registered among ``n`` clouds, sorted: all of them
+    up to ``option.max_all_pairs`` clouds, else each cloud with its ``option.neighbours``
+    successors, cyclically."""
+    if n <= option.max_all_pairs:
+        return list(itertools.combinations(range(n), 2))
+    near = {tuple(sorted((i, (i + k) % n))) for i in range(n)
+            for k in range(1, min(option.neighbours, n - 1) + 1)}
+    return sorted(near)
+
+
+def _register_pairs(
+    sources: list[PreparedSource], targets: list[PreparedTarget],
+    pairs: list[tuple[int, int]], voxel_size: float, option: MultiwayOption,
+) -> list[PairwiseRecord]:
+    """Each pair registered (source the first cloud, target the second), in the pairs'
+    order, on ``option.workers`` threads; ``option.progress`` told after each."""
+    lock, done = threading.Lock(), [0]
+
+    def register(pair: tuple[int, int]) -> PairwiseRecord:
+        i, j = pair
+        result = registration_spectral_global(sources[i], targets[j], voxel_size)
+        if option.progress is not None:
+            with lock:
+                done[0] += 1
+                option.progress(done[0], len(pairs))
+        return PairwiseRecord(i, j, np.array(result.transformation, dtype=np.float64),
+                              float(result.fitness), float(result.fit),
+                              float(result.rival_fit), kept=False, uncertain=True)
+
+    return thread_map(register, pairs, option.workers)
+
+
+def _selected(record: PairwiseRecord, option: MultiwayOption) -> PairwiseRecord:
+    """The record with ``kept`` and ``uncertain`` set by ``option``'s thresholds."""
+    lead = record.fit - record.rival_fit
+    kept = (record.fit >= option.min_fit and record.fitness >= option.min_fitness
+            and lead >= option.rival_margin)
+    certain = kept and record.fit >= option.certain_fit and lead >= option.certain_margin
+    return PairwiseRecord(record.source, record.target, record.transformation,
+                          record.fitness, record.fit, record.rival_fit, kept, not certain)
+
+
+def maximum_spanning_tree(
+    n: int, weighted: list[tuple[int, int, float]]
+) -> list[tuple[int, int]]:
+    """Kruskal's maximum spanning forest of ``n`` nodes over the edges ``(i, j, weight)``;
+    ties broken by the nodes' indices. Returns the chosen ``(i, j)``."""
+    parent = list(range(n))
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    tree = []
+    for i, j, _ in sorted(weighted, key=lambda e: (-e[2], e[0], e[1])):
+        a, b = root(i), root(j)
+        if a != b:
+            parent[b] = a
+            tree.append((i, j))
+    return tree
+
+
+def _chained(
+    n: int, tree: list[tuple[int, int]], transformations: dict[tuple[int, int], NDArray]
+) -> list[NDArray[np.float64] | None]:
+    """Each cloud's pose in cloud 0's frame chained along ``tree`` from cloud 0 (None for
+    the clouds it does not reach); ``transformations[(i, j)]`` maps cloud i onto cloud j."""
+    poses: list[NDArray[np.float64] | None] = [None] * n
+    poses[0] = np.eye(4)
+    frontier = [0]
+    while frontier:
+        k = frontier.pop(0)
+        for i, j in tree:
+            if i == k and poses[j] is None:
+                poses[j] = poses[i] @ np.linalg.inv(transformations[(i, j)])
+                frontier.append(j)
+            elif j == k and poses[i] is None:
+                poses[i] = poses[j] @ transformations[(i, j)]
+                frontier.append(i)
+    return poses
+
+
+def _information(
+    downs: list[o3d.geometry.PointCloud], i: int, j: int, distance: float,
+    transformation: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Open3D's information matrix (6, 6) of the edge from cloud i to cloud j."""
+    return np.asarray(reg.get_information_matrix_from_point_clouds(
+        downs[i], downs[j], distance, transformation))
+
+
+def _optimised(
+    nodes: tuple[int, ...], poses: list[NDArray[np.float64] | None], edges: list[Edge],
+    distance: float, prune: float,
+) -> o3d.pipelines.registration.PoseGraph:
+    """The pose graph of ``nodes`` (initial poses ``poses``) and ``edges``, optimised by
+    Open3D's Levenberg-Marquardt with its line process (reference node 0)."""
+    graph = reg.PoseGraph()
+    index = {cloud: k for k, cloud in enumerate(nodes)}
+    for cloud in nodes:
+        graph.nodes.append(reg.PoseGraphNode(np.array(poses[cloud])))
+    for i, j, transformation, information, uncertain in edges:
+        graph.edges.append(reg.PoseGraphEdge(index[i], index[j], transformation,
+                                             information, uncertain=uncertain))
+    if len(nodes) > 1:
+        option = reg.GlobalOptimizationOption(max_correspondence_distance=distance,
+                                              edge_prune_threshold=prune, reference_node=0)
+        with one_open3d_thread():
+            reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
+                                    reg.GlobalOptimizationConvergenceCriteria(), option)
+    return graph
+
+
+def _node_poses(
+    graph: o3d.pipelines.registration.PoseGraph, nodes: tuple[int, ...], n: int
+) -> list[NDArray[np.float64] | None]:
+    """Each cloud's pose from ``graph``, in the first node's frame, its rotation made
+    exactly orthonormal; None for a cloud that is not a node."""
+    poses: list[NDArray[np.float64] | None] = [None] * n
+    first = np.linalg.inv(np.asarray(graph.nodes[0].pose))
+    for k, cloud in enumerate(nodes):
+        pose = first @ np.asarray(graph.nodes[k].pose, dtype=np.float64)
+        u, _, vt = np.linalg.svd(pose[:3, :3])
+        pose[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+        pose[3] = (0.0, 0.0, 0.0, 1.0)
+        poses[cloud] = pose
+    return poses
+
+
+def _fine(arrays: CloudArrays, voxel_size: float) -> o3d.geometry.PointCloud:
+    """The cloud down-sampled to :data:`FINE_CELL` voxels, its normals estimated over
+    one voxel: the resolution the registration's own polish reads the surface at."""
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(arrays.points))
+    cloud = cloud.voxel_down_sample(FINE_CELL * voxel_size)
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(voxel_size, 30))
+    return cloud
+
+
+def _refined_edges(
+    downs: list[o3d.geometry.PointCloud], fines: list[o3d.geometry.PointCloud],
+    poses: list[NDArray[np.float64] | None], pairs: list[tuple[int, int]],
+    trusted: set[tuple[int, int]], certain: set[tuple[int, int]], voxel_size: float,
+    option: MultiwayOption,
+) -> list[Edge]:
+    """Each pair of placed clouds registered again from the optimised ``poses``: a
+    point-to-plane ICP on the voxel down-samples at ``option.distance_voxels``, then one
+    on the fine clouds at :data:`FINE_DISTANCE` voxels. Kept when the clouds overlap
+    there (the first ICP's fitness at least ``option.refine_min_fitness``) or the pair
+    is ``trusted`` (the tree's and the certain edges); uncertain unless ``certain``."""
+    placed = [(i, j) for i, j in pairs if poses[i] is not None and poses[j] is not None]
+    distance = option.distance_voxels * voxel_size
+
+    def refined(pair: tuple[int, int]) -> Edge | None:
+        i, j = pair
+        init = np.linalg.inv(poses[j]) @ poses[i]
+        coarse = point_to_plane_icp(downs[i], downs[j], distance, init)
+        fitness = reg.evaluate_registration(downs[i], downs[j], distance, coarse).fitness
+        if fitness < option.refine_min_fitness and pair not in trusted:
+            return None
+        transformation = point_to_plane_icp(fines[i], fines[j], FINE_DISTANCE * voxel_size,
+                                            coarse)
+        information = _information(downs, i, j, distance, transformation)
+        return i, j, transformation, information, pair not in certain
+
+    return [e for e in thread_map(refined, placed, option.workers) if e is not None]

@@ -1,0 +1,151 @@
+"""Settings and results of :func:`o3d_spectral.registration_multiway`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+from numpy.typing import NDArray
+
+from ._checks import check_bool, check_int, check_number
+
+__all__ = ["MultiwayOption", "PairwiseRecord", "MultiwayResult"]
+
+
+@dataclass(frozen=True)
+class MultiwayOption:
+    """How :func:`o3d_spectral.registration_multiway` pairs, selects and optimises.
+
+    Attributes
+    ----------
+    max_all_pairs : int, default 12
+        Up to this many clouds, every pair is registered: ``n (n - 1) / 2`` calls (28 for
+        8 clouds, 66 for 12). Beyond, each cloud is registered with the ``neighbours``
+        clouds that follow it in the list, cyclically (``n * neighbours`` calls): the
+        clouds are then taken to be in capture order.
+    neighbours : int, default 4
+        See ``max_all_pairs``.
+    min_fit : float, default 0.3
+        A pair's result becomes an edge of the pose graph only when its ``fit`` is at
+        least this, its ``fitness`` at least ``min_fitness`` and its ``fit`` leads its
+        ``rival_fit`` by ``rival_margin``: a pair whose best pose does not fit clearly
+        better than a distinct one is as likely wrong as right.
+    min_fitness : float, default 0.1
+        See ``min_fit``.
+    rival_margin : float, default 0.05
+        See ``min_fit``.
+    certain_fit : float, default 0.8
+        A kept edge whose ``fit`` is at least this and leads its ``rival_fit`` by
+        ``certain_margin`` is added as odometry-like (``uncertain=False``: never pruned
+        by the optimisation's line process); the other kept edges are uncertain.
+    certain_margin : float, default 0.2
+        See ``certain_fit``.
+    distance_voxels : float, default 1.5
+        The optimisation's ``max_correspondence_distance``, and the reach of the
+        information matrices and of the refinement's ICP, in voxels.
+    edge_prune_threshold : float, default 0.25
+        Open3D's line-process threshold: an uncertain edge whose weight falls under it is
+        dropped and the graph optimised again.
+    refine : bool, default True
+        After the first optimisation, each pair whose clouds overlap at the optimised
+        poses (ICP ``fitness`` at least ``refine_min_fitness``) is registered again by
+        point-to-plane ICP from those poses and the graph of those edges optimised again.
+    refine_min_fitness : float, default 0.3
+        See ``refine``.
+    workers : int or None, default None
+        Threads the pairwise registrations run on (all cores when None). The result is
+        the same whatever the number.
+    progress : callable or None, default None
+        Called as ``progress(done, total)`` after each pairwise registration (from the
+        worker threads, one call at a time).
+    """
+
+    max_all_pairs: int = 12
+    neighbours: int = 4
+    min_fit: float = 0.3
+    min_fitness: float = 0.1
+    rival_margin: float = 0.05
+    certain_fit: float = 0.8
+    certain_margin: float = 0.2
+    distance_voxels: float = 1.5
+    edge_prune_threshold: float = 0.25
+    refine: bool = True
+    refine_min_fitness: float = 0.3
+    workers: int | None = None
+    progress: Callable[[int, int], None] | None = None
+
+    def __post_init__(self) -> None:
+        check_int("max_all_pairs", self.max_all_pairs, low=2)
+        check_int("neighbours", self.neighbours, low=1)
+        for name in ("min_fit", "min_fitness", "certain_fit", "refine_min_fitness",
+                     "edge_prune_threshold"):
+            check_number(name, getattr(self, name), low=0.0, high=1.0)
+        for name in ("rival_margin", "certain_margin"):
+            check_number(name, getattr(self, name), low=-1.0, high=1.0)
+        check_number("distance_voxels", self.distance_voxels, low=0.0, low_open=True)
+        check_bool("refine", self.refine)
+        check_int("workers", self.workers, low=1, optional=True)
+        if self.progress is not None and not callable(self.progress):
+            raise TypeError(f"progress must be callable or None, got "
+                            f"{type(self.progress).__qualname__}")
+
+
+@dataclass(frozen=True)
+class PairwiseRecord:
+    """One pairwise registration of :func:`o3d_spectral.registration_multiway`.
+
+    Attributes
+    ----------
+    source, target : int
+        Indices of the clouds (``source < target``).
+    transformation : ndarray, shape (4, 4), float64
+        The pairwise result: maps the source cloud's points onto the target cloud's.
+    fitness, fit, rival_fit : float
+        The pairwise result's (:class:`o3d_spectral.SpectralRegistrationResult`).
+    kept : bool
+        The result became an edge of the first pose graph (see
+        :class:`MultiwayOption` ``min_fit``).
+    uncertain : bool
+        A kept edge the line process may prune (see ``certain_fit``).
+    """
+
+    source: int
+    target: int
+    transformation: NDArray[np.float64]
+    fitness: float
+    fit: float
+    rival_fit: float
+    kept: bool
+    uncertain: bool
+
+
+@dataclass(frozen=True)
+class MultiwayResult:
+    """What :func:`o3d_spectral.registration_multiway` returns.
+
+    Attributes
+    ----------
+    poses : tuple of (ndarray, shape (4, 4), float64) or None
+        Each cloud's pose in the first cloud's frame (``p_first = pose @ p``, rigid); None
+        for a cloud in ``unconnected``.
+    pose_graph : open3d.pipelines.registration.PoseGraph
+        The optimised graph: one node per connected cloud, in the order of ``nodes``,
+        its edges those left after the line process's pruning.
+    nodes : tuple of int
+        The cloud index of each node of ``pose_graph`` (the first is 0).
+    pairs : tuple of PairwiseRecord
+        Every pairwise registration, in the order the pairs were listed.
+    unconnected : tuple of int
+        Clouds no chain of kept edges links to the first cloud: reported, not placed.
+    run_time : float
+        Seconds.
+    """
+
+    poses: tuple[NDArray[np.float64] | None, ...]
+    pose_graph: o3d.pipelines.registration.PoseGraph
+    nodes: tuple[int, ...]
+    pairs: tuple[PairwiseRecord, ...]
+    unconnected: tuple[int, ...]
+    run_time: float
