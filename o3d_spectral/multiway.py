@@ -11,6 +11,7 @@ there, and optimises that graph. ``docs/multiway.md`` describes the steps and th
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import threading
 import time
@@ -30,7 +31,8 @@ from .prepared_target import PreparedTarget, prepare_target
 from .refinement import point_to_plane_icp
 from .registration import registration_spectral_global
 
-__all__ = ["registration_multiway", "MultiwayOption", "MultiwayResult", "PairwiseRecord"]
+__all__ = ["registration_multiway", "poses_from_pairs", "pair_list", "maximum_spanning_tree",
+           "MultiwayOption", "MultiwayResult", "PairwiseRecord"]
 
 reg = o3d.pipelines.registration
 #: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
@@ -39,6 +41,8 @@ Edge = tuple[int, int, NDArray[np.float64], NDArray[np.float64], bool]
 #: The refinement's second ICP: on the clouds down-sampled to this many voxels, with
 #: correspondences up to :data:`FINE_DISTANCE` voxels (the registration's own polish).
 FINE_CELL, FINE_DISTANCE = 0.25, 0.4
+#: Radius (voxels) of the normals of the voxel down-samples.
+NORMAL_VOXELS = 2.5
 
 
 def registration_multiway(
@@ -96,11 +100,38 @@ def registration_multiway(
     check_instance("option", option, MultiwayOption)
     option = option or MultiwayOption()
     arrays = _checked_clouds(clouds)
-    n = len(arrays)
     sources, targets = _prepared(arrays, voxel_size, option.workers)
-    downs = [_down_sampled(s) for s in sources]
-    pairs = pair_list(n, option)
-    records = _register_pairs(sources, targets, pairs, voxel_size, option)
+    records = _register_pairs(sources, targets, pair_list(len(arrays), option), voxel_size,
+                              option)
+    result = poses_from_pairs(arrays, voxel_size, records, option=option)
+    return dataclasses.replace(result, run_time=time.perf_counter() - start)
+
+
+def poses_from_pairs(
+    clouds: Sequence[object], voxel_size: float, records: Sequence[PairwiseRecord], *,
+    option: MultiwayOption | None = None,
+) -> MultiwayResult:
+    """Steps 2-5 of :func:`registration_multiway` on pairwise results made by any method.
+
+    Parameters
+    ----------
+    clouds, voxel_size, option
+        As :func:`registration_multiway`.
+    records : sequence of PairwiseRecord
+        One per registered pair (``kept`` and ``uncertain`` are set here from ``fit``,
+        ``fitness`` and ``rival_fit``; a method without a rival may give 0).
+
+    Returns
+    -------
+    MultiwayResult
+    """
+    start = time.perf_counter()
+    voxel_size = check_voxel_size(voxel_size)
+    check_instance("option", option, MultiwayOption)
+    option = option or MultiwayOption()
+    arrays = _checked_clouds(clouds)
+    n = len(arrays)
+    downs = thread_map(lambda a: _down_sampled(a, voxel_size), arrays, option.workers)
     distance = option.distance_voxels * voxel_size
     records = [_selected(r, option) for r in records]
     kept = [r for r in records if r.kept]
@@ -115,8 +146,8 @@ def registration_multiway(
         poses = _node_poses(graph, nodes, n)
         certain = {(r.source, r.target) for r in kept if not r.uncertain}
         fines = thread_map(lambda a: _fine(a, voxel_size), arrays, option.workers)
-        edges = _refined_edges(downs, fines, poses, pairs, set(tree) | certain, certain,
-                               voxel_size, option)
+        edges = _refined_edges(downs, fines, poses, [(r.source, r.target) for r in records],
+                               set(tree) | certain, certain, voxel_size, option)
         graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
     return MultiwayResult(
         poses=tuple(_node_poses(graph, nodes, n)), pose_graph=graph, nodes=nodes,
@@ -158,10 +189,12 @@ def _prepared(
     return done[:len(arrays)], done[len(arrays):]
 
 
-def _down_sampled(source: PreparedSource) -> o3d.geometry.PointCloud:
-    """The prepared cloud's points (one per voxel) with their mean normals."""
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(source.cloud.points))
-    cloud.normals = o3d.utility.Vector3dVector(source.cloud.point_normals)
+def _down_sampled(arrays: CloudArrays, voxel_size: float) -> o3d.geometry.PointCloud:
+    """The cloud down-sampled to one point per voxel, its normals estimated over
+    :data:`NORMAL_VOXELS` voxels (the information matrices' and the first ICP's input)."""
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(arrays.points))
+    cloud = cloud.voxel_down_sample(voxel_size)
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(NORMAL_VOXELS * voxel_size, 30))
     return cloud
 
 
