@@ -34,3 +34,10 @@ def test_eval_prints_the_summary_before_its_last_line(suite_dir, tmp_path, capsy
     assert float(row[4]) == pytest.approx(100 * frame["success"].mean(), abs=0.05)
     assert float(row[5]) == pytest.approx(frame["time_s"].median(), abs=5e-4)
     assert run_summary(out) == "\n".join(table) + "\n"
+
+
+def test_eval_of_a_shard_with_nothing_to_run_prints_no_table(suite_dir, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["-q", "eval", "--suite", str(suite_dir), "--methods", "icp_point_to_point",
+                 "--shard", "0/50", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {out}")

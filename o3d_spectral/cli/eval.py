@@ -217,6 +217,7 @@ def eval_command(args: argparse.Namespace) -> int:
         print(f"o3d-spectral eval: interrupted; the rows done so far stay in {args.out} "
               "(run the same command again to resume)", file=sys.stderr)
         return 130
-    print(run_summary(args.out), file=results())
+    if table.stat().st_size:  # else no row: a shard with nothing to run
+        print(run_summary(args.out), file=results())
     print(f"wrote {table} in {time.perf_counter() - start:.1f} s", file=results())
     return 0
