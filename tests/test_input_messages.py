@@ -39,7 +39,7 @@ def test_all_zero_normals_are_refused_without_numpy_warnings(target):
     source = np.hstack([target, np.zeros_like(target)])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        with pytest.raises(ValueError, match="source: all its 2000 normals are zero"):
+        with pytest.raises(ValueError, match="source: its normals are all zero; give unit"):
             o3d_spectral.registration_spectral_global(source, target, VOXEL)
         assert not faces(target, np.zeros_like(target), np.zeros(3))
 
@@ -48,7 +48,7 @@ def test_a_mesh_read_as_a_point_cloud_is_told_how_to_sample_it(target, tmp_path)
     path = tmp_path / "box.obj"
     o3d.io.write_triangle_mesh(str(path), o3d.geometry.TriangleMesh.create_box(0.1, 0.2, 0.05))
     empty = o3d.io.read_point_cloud(str(path))
-    with pytest.raises(ValueError, match=r"source is empty \(no points; .*sample_points_uniformly"):
+    with pytest.raises(ValueError, match=r"source is empty; .*read_point_cloud.*sample_points"):
         o3d_spectral.registration_spectral(empty, target, VOXEL)
 
 

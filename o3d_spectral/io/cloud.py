@@ -25,8 +25,6 @@ __all__ = [
 
 #: Fewest points, and fewest occupied voxels after down-sampling, the method accepts.
 MIN_POINTS = 10
-#: Normals this long or shorter are not used (an all-zero set is refused).
-MIN_NORMAL = 1e-6
 #: :func:`dense_bounds`: points beyond a gap of this many voxels along an axis, holding at
 #: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
 ISOLATED_GAP = 10.0
@@ -69,9 +67,8 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
     TypeError
         For an unsupported type.
     ValueError
-        For a cloud of fewer than :data:`MIN_POINTS` points (an empty one suggests sampling
-        a mesh), a wrong array shape, non-finite coordinates or normals, or normals that
-        are all zero.
+        For under :data:`MIN_POINTS` points (an empty cloud: how to sample a mesh), a wrong
+        array shape, non-finite coordinates or normals, or normals all zero.
     """
     if isinstance(cloud, CloudArrays):  # already converted and checked
         return cloud
@@ -83,23 +80,22 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
         if "positions" not in cloud.point:
             raise ValueError(f"{name}: the tensor point cloud has no 'positions'")
         points = real_array(f"{name} positions", cloud.point.positions).reshape(-1, 3)
-        normals = (
-            real_array(f"{name} normals", cloud.point.normals).reshape(-1, 3)
-            if "normals" in cloud.point
-            else None
-        )
+        normals = (real_array(f"{name} normals", cloud.point.normals).reshape(-1, 3)
+                   if "normals" in cloud.point else None)
     elif isinstance(cloud, np.ndarray | list | tuple):
         array = real_array(name, cloud)  # a copy; bool, complex or text refused
         if array.ndim != 2 or array.shape[1] not in (3, 6):
-            raise ValueError(
-                f"{name}: a numpy cloud must have shape (N, 3) or (N, 6), got {array.shape}"
-            )
+            raise ValueError(f"{name}: a numpy cloud must have shape (N, 3) or (N, 6), "
+                             f"got {array.shape}")
         points = np.ascontiguousarray(array[:, :3])
         normals = np.ascontiguousarray(array[:, 3:]) if array.shape[1] == 6 else None
     else:
         raise TypeError(f"{name}: expected {CloudLike}, got {type(cloud).__name__}")
-    if len(points) < MIN_POINTS:
-        raise ValueError(_too_few(name, len(points)))
+    if len(points) < MIN_POINTS:  # none: a mesh file read as a cloud; few: its vertices?
+        count = "is empty" if len(points) == 0 else f"has {len(points)} points"
+        raise ValueError(f"{name} {count}; the method needs at least {MIN_POINTS}: a denser "
+                         "cloud (of a mesh, its surface sampled, not its vertices nor "
+                         "read_point_cloud: read_triangle_mesh(path).sample_points_uniformly(n))")
     bad = ~every(np.isfinite(points))
     if bad.any():
         raise ValueError(
@@ -112,22 +108,9 @@ def as_arrays(cloud: object, name: str = "cloud") -> CloudArrays:
         bad = ~every(np.isfinite(normals))
         if bad.any():
             raise ValueError(f"{name} has {int(bad.sum())} normals with NaN or infinite entries")
-        if not np.any(lengths(normals) > MIN_NORMAL):
-            raise ValueError(
-                f"{name}: all its {len(normals)} normals are zero; give unit normals, or "
-                "none (they are then estimated)"
-            )
+        if not np.any(lengths(normals) > 1e-6):  # as prepare uses them
+            raise ValueError(f"{name}: its normals are all zero; give unit ones, or none")
     return CloudArrays(points, normals)
-
-
-def _too_few(name: str, count: int) -> str:
-    """The message refusing the cloud ``name`` of ``count`` points (under :data:`MIN_POINTS`)."""
-    sample = "o3d.io.read_triangle_mesh(path).sample_points_uniformly(20000)"
-    if count == 0:
-        return (f"{name} is empty (no points; o3d.io.read_point_cloud reads none from a mesh "
-                f"file: sample the mesh, {sample})")
-    return (f"{name} has {count} points; the method needs at least {MIN_POINTS}: pass a "
-            f"denser cloud (of a mesh, a sample of its surface, not its vertices: {sample})")
 
 
 def to_legacy(arrays: CloudArrays) -> o3d.geometry.PointCloud:
@@ -405,7 +388,7 @@ def prepare(
     else:
         normals, normal_points = arrays.normals, arrays.points
     length = lengths(normals)
-    keep = np.flatnonzero(length > MIN_NORMAL)
+    keep = np.flatnonzero(length > 1e-6)
     if len(keep) < MIN_POINTS:
         raise ValueError(f"{name}: fewer than {MIN_POINTS} points have usable normals")
     if len(keep) > max_egi_points:  # an evenly spread subset (the EGI is normalised later)
