@@ -3,24 +3,28 @@
 :func:`registration_multiway` registers pairs of the clouds with
 :func:`o3d_spectral.registration_spectral_global` (no initial pose needed), keeps the pairs
 whose result clearly fits, places every cloud by a maximum spanning tree of those pairs
-weighted by their ``fit``, and optimises the poses over all kept pairs with Open3D's pose
-graph (Levenberg-Marquardt with a line process that prunes wrong edges). A refinement then
-registers again, by point-to-plane ICP from the optimised poses, every pair that overlaps
-there, and optimises that graph. ``docs/multiway.md`` describes the steps and their measure.
+weighted by their ``fit``, and optimises the poses over the kept pairs that agree with
+the tree by Open3D's pose graph (Levenberg-Marquardt with a line process that prunes
+wrong edges). A refinement then registers again, by point-to-plane ICP from the optimised
+poses, every pair that overlaps there, and optimises that graph.
+``docs/multiway.md`` describes the steps and their measure.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
+import logging
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
+from . import diagnostics
 from ._checks import check_instance, check_voxel_size
 from .io.cloud import CloudArrays, as_arrays
 from .io.units import MAX_EXTENT_RATIO, span
@@ -35,6 +39,7 @@ __all__ = ["registration_multiway", "poses_from_pairs", "pair_list", "maximum_sp
            "MultiwayOption", "MultiwayResult", "PairwiseRecord"]
 
 reg = o3d.pipelines.registration
+log = logging.getLogger(__name__)
 #: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
 #: information matrix (6, 6), uncertain).
 Edge = tuple[int, int, NDArray[np.float64], NDArray[np.float64], bool]
@@ -60,7 +65,10 @@ def registration_multiway(
        Open3D's ``get_information_matrix_from_point_clouds`` on the down-sampled clouds;
     3. **tree**: the initial poses chained along a maximum spanning tree of the edges
        weighted by ``fit``, from the first cloud; clouds it does not reach are
-       ``unconnected``;
+       ``unconnected``; the edges that disagree with those poses are dropped (a
+       symmetric object's pairs may each be right up to a different symmetry), and a
+       cloud that only weak tree edges place while its other pairs disagree is left
+       unconnected;
     4. **optimisation**: Open3D's ``global_optimization`` (Levenberg-Marquardt, line
        process with ``option.edge_prune_threshold``, reference node 0);
     5. **refinement** (``option.refine``): every pair overlapping at the optimised poses
@@ -76,6 +84,10 @@ def registration_multiway(
         Voxel edge, metres, of every pairwise registration.
     option : MultiwayOption, optional
         Pairs, selection, optimisation, threads and progress.
+
+    The pairwise calls' low-fit warnings are not logged during the call (scans that do
+    not overlap fit poorly, and the selection expects it); each pair's ``fit`` is in
+    ``result.pairs``.
 
     Returns
     -------
@@ -101,8 +113,10 @@ def registration_multiway(
     option = option or MultiwayOption()
     arrays = _checked_clouds(clouds)
     sources, targets = _prepared(arrays, voxel_size, option.workers)
-    records = _register_pairs(sources, targets, pair_list(len(arrays), option), voxel_size,
-                              option)
+    with _quiet_low_fit():
+        records = _register_pairs(sources, targets, pair_list(len(arrays), option),
+                                  voxel_size, option)
+    log.info("%d of %d pairs fit: %d odometry-like", *_kept_counts(records, option))
     result = poses_from_pairs(arrays, voxel_size, records, option=option)
     return dataclasses.replace(result, run_time=time.perf_counter() - start)
 
@@ -124,7 +138,20 @@ def poses_from_pairs(
     Returns
     -------
     MultiwayResult
+
+    Open3D's own parallel loops run on one thread meanwhile
+    (:func:`o3d_spectral.parallel.one_open3d_thread`): the result repeats to the bit,
+    whatever ``option.workers``.
     """
+    with one_open3d_thread():
+        return _poses_from_pairs(clouds, voxel_size, records, option)
+
+
+def _poses_from_pairs(
+    clouds: Sequence[object], voxel_size: float, records: Sequence[PairwiseRecord],
+    option: MultiwayOption | None,
+) -> MultiwayResult:
+    """:func:`poses_from_pairs` (its Open3D threads limited by the caller)."""
     start = time.perf_counter()
     voxel_size = check_voxel_size(voxel_size)
     check_instance("option", option, MultiwayOption)
@@ -133,10 +160,10 @@ def poses_from_pairs(
     n = len(arrays)
     downs = thread_map(lambda a: _down_sampled(a, voxel_size), arrays, option.workers)
     distance = option.distance_voxels * voxel_size
-    records = [_selected(r, option) for r in records]
+    centres = [a.points.mean(axis=0) for a in arrays]
+    records, tree, poses = _placed(n, [_selected(r, option) for r in records], centres,
+                                   voxel_size, option)
     kept = [r for r in records if r.kept]
-    tree = maximum_spanning_tree(n, [(r.source, r.target, r.fit) for r in kept])
-    poses = _chained(n, tree, {(r.source, r.target): r.transformation for r in kept})
     nodes = tuple(k for k in range(n) if poses[k] is not None)
     edges = [(r.source, r.target, r.transformation,
               _information(downs, r.source, r.target, distance, r.transformation), r.uncertain)
@@ -146,14 +173,43 @@ def poses_from_pairs(
         poses = _node_poses(graph, nodes, n)
         certain = {(r.source, r.target) for r in kept if not r.uncertain}
         fines = thread_map(lambda a: _fine(a, voxel_size), arrays, option.workers)
-        edges = _refined_edges(downs, fines, poses, [(r.source, r.target) for r in records],
-                               set(tree) | certain, certain, voxel_size, option)
+        trusted = {(r.source, r.target): r.transformation for r in kept
+                   if (r.source, r.target) in set(tree) | certain}
+        edges = _refined_edges(downs, fines, centres, poses,
+                               [(r.source, r.target) for r in records], trusted, certain,
+                               voxel_size, option)
         graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
     return MultiwayResult(
         poses=tuple(_node_poses(graph, nodes, n)), pose_graph=graph, nodes=nodes,
         pairs=tuple(records), unconnected=tuple(k for k in range(n) if k not in nodes),
         run_time=time.perf_counter() - start,
     )
+
+
+class _LowFitFilter(logging.Filter):
+    """Drops the pairwise calls' low-fit warnings."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("low fit")
+
+
+@contextlib.contextmanager
+def _quiet_low_fit() -> Iterator[None]:
+    """The diagnostics' low-fit warnings left unlogged during the block: between scans
+    that do not overlap a low fit is expected, and the selection handles it."""
+    quiet = _LowFitFilter()
+    logging.getLogger(diagnostics.__name__).addFilter(quiet)
+    try:
+        yield
+    finally:
+        logging.getLogger(diagnostics.__name__).removeFilter(quiet)
+
+
+def _kept_counts(records: list[PairwiseRecord], option: MultiwayOption) -> tuple[int, ...]:
+    """(kept pairs, pairs, odometry-like pairs) under ``option``'s selection."""
+    selected = [_selected(r, option) for r in records]
+    return (sum(r.kept for r in selected), len(selected),
+            sum(r.kept and not r.uncertain for r in selected))
 
 
 def _checked_clouds(clouds: Sequence[object]) -> list[CloudArrays]:
@@ -241,6 +297,68 @@ def _selected(record: PairwiseRecord, option: MultiwayOption) -> PairwiseRecord:
                           record.fitness, record.fit, record.rival_fit, kept, not certain)
 
 
+def _placed(
+    n: int, records: list[PairwiseRecord], centres: list[NDArray[np.float64]],
+    voxel_size: float, option: MultiwayOption,
+) -> tuple[list[PairwiseRecord], list[tuple[int, int]], list[NDArray[np.float64] | None]]:
+    """The tree of the kept pairs, the poses chained along it, and the records with
+    ``kept`` cleared for the pairs that disagree with those poses (:func:`_fits_tree`).
+
+    A cloud placed by weak tree edges alone (``fit`` under ``option.certain_fit``) while
+    its other kept pairs all disagree with it is contradicted: a cloud of another object
+    that two scans each match somewhere. Its pairs are dropped and the tree built again,
+    until no cloud is contradicted."""
+    while True:
+        kept = [r for r in records if r.kept]
+        tree = maximum_spanning_tree(n, [(r.source, r.target, r.fit) for r in kept])
+        poses = _chained(n, tree, {(r.source, r.target): r.transformation for r in kept})
+        agree = [r.kept and _fits_tree(r, tree, poses, centres, voxel_size, option)
+                 for r in records]
+        doubted = set()
+        for k in range(1, n):
+            mine = [(r, a) for r, a in zip(records, agree, strict=True)
+                    if r.kept and k in (r.source, r.target)]
+            branches = [r for r, _ in mine if (r.source, r.target) in tree]
+            if (len(mine) > len(branches) and not any(a for r, a in mine if r not in branches)
+                    and all(r.fit < option.certain_fit for r in branches)):
+                doubted.add(k)
+        if not doubted:
+            return ([dataclasses.replace(r, kept=a) for r, a in zip(records, agree,
+                                                                    strict=True)],
+                    tree, poses)
+        records = [dataclasses.replace(r, kept=r.kept and not {r.source, r.target} & doubted)
+                   for r in records]
+
+
+def _agree(
+    one: NDArray[np.float64], other: NDArray[np.float64], centre: NDArray[np.float64],
+    voxel_size: float, option: MultiwayOption,
+) -> bool:
+    """Whether two transformations (4, 4) are within ``option.cycle_degrees`` of each
+    other and move ``centre`` (3,) to within ``option.cycle_voxels`` voxels."""
+    cosine = (np.trace(one[:3, :3].T @ other[:3, :3]) - 1.0) / 2.0
+    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    shift = np.linalg.norm((one[:3, :3] - other[:3, :3]) @ centre + one[:3, 3] - other[:3, 3])
+    return bool(angle <= option.cycle_degrees and shift <= option.cycle_voxels * voxel_size)
+
+
+def _fits_tree(
+    record: PairwiseRecord, tree: list[tuple[int, int]],
+    poses: list[NDArray[np.float64] | None], centres: list[NDArray[np.float64]],
+    voxel_size: float, option: MultiwayOption,
+) -> bool:
+    """Whether a kept pair is an edge of the tree or agrees with the poses chained along
+    it (``option.cycle_degrees`` and ``cycle_voxels``). Between views of a symmetric
+    object each pair may be right up to a different element of its symmetry group: the
+    pairs that agree with the tree make one consistent model, where optimising them all
+    would average incompatible ones."""
+    i, j = record.source, record.target
+    if (i, j) in tree or poses[i] is None or poses[j] is None:
+        return (i, j) in tree
+    return _agree(record.transformation, np.linalg.inv(poses[j]) @ poses[i], centres[i],
+                  voxel_size, option)
+
+
 def maximum_spanning_tree(
     n: int, weighted: list[tuple[int, int, float]]
 ) -> list[tuple[int, int]]:
@@ -308,7 +426,9 @@ def _optimised(
     if len(nodes) > 1:
         option = reg.GlobalOptimizationOption(max_correspondence_distance=distance,
                                               edge_prune_threshold=prune, reference_node=0)
-        with one_open3d_thread():
+        # Uncertain edges are meant: Open3D's warning that the certain ones do not
+        # connect the graph is left out.
+        with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
             reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
                                     reg.GlobalOptimizationConvergenceCriteria(), option)
     return graph
@@ -320,8 +440,9 @@ def _node_poses(
     """Each cloud's pose from ``graph``, in the first node's frame, its rotation made
     exactly orthonormal; None for a cloud that is not a node."""
     poses: list[NDArray[np.float64] | None] = [None] * n
+    poses[nodes[0]] = np.eye(4)
     first = np.linalg.inv(np.asarray(graph.nodes[0].pose))
-    for k, cloud in enumerate(nodes):
+    for k, cloud in enumerate(nodes[1:], start=1):
         pose = first @ np.asarray(graph.nodes[k].pose, dtype=np.float64)
         u, _, vt = np.linalg.svd(pose[:3, :3])
         pose[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
@@ -341,15 +462,18 @@ def _fine(arrays: CloudArrays, voxel_size: float) -> o3d.geometry.PointCloud:
 
 def _refined_edges(
     downs: list[o3d.geometry.PointCloud], fines: list[o3d.geometry.PointCloud],
-    poses: list[NDArray[np.float64] | None], pairs: list[tuple[int, int]],
-    trusted: set[tuple[int, int]], certain: set[tuple[int, int]], voxel_size: float,
-    option: MultiwayOption,
+    centres: list[NDArray[np.float64]], poses: list[NDArray[np.float64] | None],
+    pairs: list[tuple[int, int]], trusted: dict[tuple[int, int], NDArray[np.float64]],
+    certain: set[tuple[int, int]], voxel_size: float, option: MultiwayOption,
 ) -> list[Edge]:
     """Each pair of placed clouds registered again from the optimised ``poses``: a
     point-to-plane ICP on the voxel down-samples at ``option.distance_voxels``, then one
     on the fine clouds at :data:`FINE_DISTANCE` voxels. Kept when the clouds overlap
-    there (the first ICP's fitness at least ``option.refine_min_fitness``) or the pair
-    is ``trusted`` (the tree's and the certain edges); uncertain unless ``certain``."""
+    there (the first ICP's fitness at least ``option.refine_min_fitness``) and the ICP
+    stayed near the poses (``option.cycle_degrees`` and ``cycle_voxels``: between views
+    that share little, it can slide along the surface); a ``trusted`` pair (the tree's
+    and the certain edges) is always kept, its pairwise transformation standing in for
+    an ICP that overlapped too little or slid. Uncertain unless ``certain``."""
     placed = [(i, j) for i, j in pairs if poses[i] is not None and poses[j] is not None]
     distance = option.distance_voxels * voxel_size
 
@@ -358,10 +482,13 @@ def _refined_edges(
         init = np.linalg.inv(poses[j]) @ poses[i]
         coarse = point_to_plane_icp(downs[i], downs[j], distance, init)
         fitness = reg.evaluate_registration(downs[i], downs[j], distance, coarse).fitness
-        if fitness < option.refine_min_fitness and pair not in trusted:
-            return None
         transformation = point_to_plane_icp(fines[i], fines[j], FINE_DISTANCE * voxel_size,
                                             coarse)
+        if fitness < option.refine_min_fitness or not _agree(
+                transformation, init, centres[i], voxel_size, option):
+            if pair not in trusted:
+                return None
+            transformation = trusted[pair]
         information = _information(downs, i, j, distance, transformation)
         return i, j, transformation, information, pair not in certain
 

@@ -36,6 +36,12 @@ class MultiwayOption:
         See ``min_fit``.
     rival_margin : float, default 0.05
         See ``min_fit``.
+    cycle_degrees : float, default 10.0
+        A kept pair becomes an edge only when it agrees with the poses chained along the
+        maximum spanning tree: within this angle and ``cycle_voxels`` of them (pairs of
+        views of a symmetric object may each be right up to a different symmetry).
+    cycle_voxels : float, default 4.0
+        See ``cycle_degrees``; measured at the source cloud's centroid, in voxels.
     certain_fit : float, default 0.8
         A kept edge whose ``fit`` is at least this and leads its ``rival_fit`` by
         ``certain_margin`` is added as odometry-like (``uncertain=False``: never pruned
@@ -67,6 +73,8 @@ class MultiwayOption:
     min_fit: float = 0.3
     min_fitness: float = 0.1
     rival_margin: float = 0.05
+    cycle_degrees: float = 10.0
+    cycle_voxels: float = 4.0
     certain_fit: float = 0.8
     certain_margin: float = 0.2
     distance_voxels: float = 1.5
@@ -84,7 +92,9 @@ class MultiwayOption:
             check_number(name, getattr(self, name), low=0.0, high=1.0)
         for name in ("rival_margin", "certain_margin"):
             check_number(name, getattr(self, name), low=-1.0, high=1.0)
-        check_number("distance_voxels", self.distance_voxels, low=0.0, low_open=True)
+        check_number("cycle_degrees", self.cycle_degrees, low=0.0, high=180.0)
+        for name in ("distance_voxels", "cycle_voxels"):
+            check_number(name, getattr(self, name), low=0.0, low_open=True)
         check_bool("refine", self.refine)
         check_int("workers", self.workers, low=1, optional=True)
         if self.progress is not None and not callable(self.progress):
@@ -105,8 +115,8 @@ class PairwiseRecord:
     fitness, fit, rival_fit : float
         The pairwise result's (:class:`o3d_spectral.SpectralRegistrationResult`).
     kept : bool
-        The result became an edge of the first pose graph (see
-        :class:`MultiwayOption` ``min_fit``).
+        The result became an edge of the first pose graph: it passed the selection and
+        agrees with the tree (:class:`MultiwayOption` ``min_fit``, ``cycle_degrees``).
     uncertain : bool
         A kept edge the line process may prune (see ``certain_fit``).
     """

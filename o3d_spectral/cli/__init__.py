@@ -40,7 +40,7 @@ from o3d_spectral.cli._output import (
 __all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "results",
            "show_progress", "versions"]
 
-COMMANDS = ("register", "demo", "suite", "eval", "report", "convert", "servo")
+COMMANDS = ("register", "demo", "suite", "eval", "report", "convert", "servo", "reconstruct")
 log = logging.getLogger(__name__)  # "o3d_spectral.cli", under the package logger
 
 

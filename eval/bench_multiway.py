@@ -1,0 +1,234 @@
+"""Multiway registration with no initial poses: the share of scans placed right.
+
+Two sets of scans, each registered into its first scan's frame by
+:func:`o3d_spectral.registration_multiway` (``spectral``) and by the same pose-graph
+pipeline on pairs registered by lean FPFH-RANSAC (``fpfh_ransac_lean``,
+:func:`o3d_spectral.multiway.poses_from_pairs`; its pairs' ``fit`` is their fitness at
+one voxel, no rival):
+
+* ``dragon``: the Stanford dragon's eight turntable scans (5 mm voxel), each turned about
+  its centroid by a seeded random rotation (one draw per seed, ``--seeds``);
+* ``turntable``: for each bundled model, 8 depth views, a camera every 45 degrees of
+  azimuth at 30 degrees of elevation, 0.45 m from the model's centre, each view in its own
+  camera frame (8 mm voxel).
+
+A scan is placed right when its pose is within 5 degrees and 1 cm (at its centroid) of
+the truth, allowing a model's symmetry group (in the first scan's frame: a symmetric
+object's scans are placed up to it). Prints a Markdown table, writes ``rows.csv`` (one
+row per scan), ``summary.csv`` and ``table.md`` to ``--out``, and with ``--docs`` the
+table between the markers of that page::
+
+    python eval/bench_multiway.py --out out/multiway --docs docs/multiway.md
+    python eval/bench_multiway.py --limit-scans 3 --models 1 --seeds 1 --out /tmp/mw
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import itertools
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial.transform import Rotation
+
+import o3d_spectral
+from o3d_spectral.harness import real
+from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
+from o3d_spectral.harness.methods import get_method
+from o3d_spectral.multiway import pair_list, poses_from_pairs
+from o3d_spectral.synthetic.camera import look_at, scan_meshes
+from o3d_spectral.synthetic.instance import SceneOptions
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.sampling import model_mesh
+from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
+
+PIPELINES = ("spectral", "fpfh_ransac_lean")
+DRAGON_VOXEL, TURNTABLE_VOXEL = 0.005, 0.008
+VIEWS, AZIMUTH_STEP, ELEVATION, DISTANCE = 8, 45.0, 30.0, 0.45
+MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
+BEGIN, END = "<!-- BEGIN GENERATED: by eval/bench_multiway.py -->", "<!-- END GENERATED -->"
+
+
+def dragon_set(seed: int, limit: int) -> tuple[list, list, list]:
+    """The dragon's first ``limit`` scans, each turned about its centroid by a random
+    rotation drawn from ``seed``: (clouds, world_from_cloud poses, symmetries)."""
+    rng = np.random.default_rng(seed)
+    clouds, poses = [], []
+    for angle in real.DRAGON_ANGLES[:limit]:
+        path = real.real_dir() / "dragon" / f"dragonStandRight_{angle}.ply"
+        cloud = o3d.io.read_point_cloud(str(path))
+        centre = np.asarray(cloud.points).mean(axis=0)
+        motion = np.eye(4)
+        motion[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        motion[:3, 3] = centre - motion[:3, :3] @ centre
+        clouds.append(cloud.transform(motion))
+        poses.append(real.dragon_pose(angle) @ np.linalg.inv(motion))
+    return clouds, poses, [Symmetry()] * len(clouds)
+
+
+def turntable_set(name: str, seed: int, limit: int) -> tuple[list, list, list]:
+    """``limit`` depth views of the model ``name`` around it (module docstring), each in
+    its camera's frame: (clouds, model_from_camera poses, symmetries in each camera's
+    frame)."""
+    rng = np.random.default_rng(seed)
+    options = SceneOptions()
+    mesh = model_mesh(name)
+    centre = np.asarray(mesh.get_center())
+    start, elevation = rng.uniform(0.0, 360.0), np.deg2rad(ELEVATION)
+    clouds, poses = [], []
+    for k in range(limit):
+        azimuth = np.deg2rad(start + AZIMUTH_STEP * k)
+        direction = np.array([np.cos(elevation) * np.cos(azimuth),
+                              np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        pose = look_at(centre + DISTANCE * direction, centre, up=(0.0, 0.0, 1.0))
+        scan = scan_meshes([mesh], options.intrinsics, pose, noise=options.noise, rng=rng)
+        clouds.append(scan.to_point_cloud())
+        poses.append(pose)
+    symmetry = model_symmetry(name)
+    return clouds, poses, [symmetry.transformed(np.linalg.inv(p)) for p in poses]
+
+
+def fpfh_records(clouds: list, voxel: float, seed: int) -> list:
+    """Every pair registered by lean FPFH-RANSAC, as the multiway pipeline's records."""
+    method = get_method("fpfh_ransac_lean")
+    records = []
+    option = o3d_spectral.MultiwayOption()
+    for i, j in pair_list(len(clouds), option):
+        transformation, _ = method(clouds[i], clouds[j], voxel, seed)
+        evaluation = o3d.pipelines.registration.evaluate_registration(
+            clouds[i].voxel_down_sample(voxel), clouds[j], voxel, transformation)
+        records.append(o3d_spectral.PairwiseRecord(
+            i, j, np.asarray(transformation, dtype=np.float64), evaluation.fitness,
+            evaluation.fitness, 0.0, kept=False, uncertain=True))
+    return records
+
+
+def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline: str,
+            seed: int, workers: int | None) -> tuple[list[dict], float]:
+    """One set registered by ``pipeline``: a row per scan (errors, success) and seconds."""
+    start = time.perf_counter()
+    option = o3d_spectral.MultiwayOption(workers=workers)
+    if pipeline == "spectral":
+        result = o3d_spectral.registration_multiway(clouds, voxel, option=option)
+    else:
+        result = poses_from_pairs(clouds, voxel, fpfh_records(clouds, voxel, seed),
+                                  option=option)
+    seconds = time.perf_counter() - start
+    rows = []
+    for k, (cloud, pose) in enumerate(zip(clouds, result.poses, strict=True)):
+        truth = np.linalg.inv(truths[0]) @ truths[k]
+        rotation = translation = float("nan")
+        if pose is not None:
+            centre = np.asarray(cloud.points).mean(axis=0)
+            rotation = symmetric_rotation_error(pose, truth, symmetries[k])
+            translation = symmetric_translation_error(pose, truth, symmetries[k],
+                                                      center=centre)
+        rows.append({"scan": k, "rotation_error_deg": rotation,
+                     "translation_error_m": translation,
+                     "success": bool(rotation < MAX_ROTATION_DEG
+                                     and translation < MAX_TRANSLATION_M),
+                     "unconnected": k in result.unconnected})
+    return rows, seconds
+
+
+def sets(args: argparse.Namespace):
+    """Yields (suite, name, seed, clouds, truths, symmetries, voxel)."""
+    for seed in range(args.seeds):
+        yield ("dragon", f"seed {seed}", seed, *dragon_set(seed, args.limit_scans),
+               DRAGON_VOXEL)
+    for m, name in enumerate(model_names()[:args.models]):
+        yield ("turntable", name, m, *turntable_set(name, m, args.limit_scans),
+               TURNTABLE_VOXEL)
+
+
+def summary(rows: list[dict], times: dict) -> list[dict]:
+    """Per suite, set and pipeline: scans right out of scans, and seconds; then per
+    suite and pipeline over its sets."""
+    out = []
+    for key, group in itertools.groupby(rows, lambda r: (r["suite"], r["set"], r["pipeline"])):
+        group = list(group)
+        out.append({"suite": key[0], "set": key[1], "pipeline": key[2],
+                    "right": sum(r["success"] for r in group), "scans": len(group),
+                    "seconds": times[key]})
+    for suite, pipeline in dict.fromkeys((r["suite"], r["pipeline"]) for r in rows):
+        group = [s for s in out if (s["suite"], s["pipeline"]) == (suite, pipeline)]
+        out.append({"suite": suite, "set": "all", "pipeline": pipeline,
+                    "right": sum(s["right"] for s in group),
+                    "scans": sum(s["scans"] for s in group),
+                    "seconds": sum(s["seconds"] for s in group)})
+    return out
+
+
+def table(rows: list[dict], command: str) -> str:
+    """The Markdown table: one line per suite and set, both pipelines side by side."""
+    by_key = {(s["suite"], s["set"], s["pipeline"]): s for s in rows}
+    lines = ["| suite | set | " + " | ".join(f"{p}: right | {p}: s" for p in PIPELINES)
+             + " |", "|---|---|" + "---:|---:|" * len(PIPELINES)]
+    suites = list(dict.fromkeys(s["suite"] for s in rows))
+    keys = sorted(dict.fromkeys((s["suite"], s["set"]) for s in rows),
+                  key=lambda key: (suites.index(key[0]), key[1] == "all"))
+    for suite, name in keys:
+        cells = []
+        for pipeline in PIPELINES:
+            s = by_key.get((suite, name, pipeline))
+            cells += ([f"{s['right']}/{s['scans']} ({100 * s['right'] / s['scans']:.0f}%)",
+                       f"{s['seconds']:.1f}"] if s else ["-", "-"])
+        label = f"**{name}**" if name == "all" else name
+        lines.append(f"| {suite} | {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + f"\n\nProduced by `{command}`.\n"
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, default=3, help="random turns of the dragon")
+    parser.add_argument("--models", type=int, default=len(model_names()),
+                        help="the first this many bundled models (sorted by name)")
+    parser.add_argument("--limit-scans", type=int, default=VIEWS, help="scans per set")
+    parser.add_argument("--pipelines", nargs="+", choices=PIPELINES, default=list(PIPELINES))
+    parser.add_argument("--workers", type=int, default=None, help="threads (all cores)")
+    parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
+    parser.add_argument("--docs", type=Path, help="page whose generated block gets the table")
+    args = parser.parse_args(argv)
+    if args.limit_scans < 2:
+        parser.error("--limit-scans must be at least 2")
+    command = "python eval/bench_multiway.py " + " ".join(
+        a for a in (argv if argv is not None else sys.argv[1:]))
+    command = re.sub(r"--out \S+", "--out OUT", re.sub(r" --docs \S+", "", command))
+    rows, times = [], {}
+    for suite, name, seed, clouds, truths, symmetries, voxel in sets(args):
+        for pipeline in args.pipelines:
+            scans, seconds = run_set(clouds, truths, symmetries, voxel, pipeline, seed,
+                                     args.workers)
+            times[(suite, name, pipeline)] = seconds
+            rows += [{"suite": suite, "set": name, "pipeline": pipeline, **r} for r in scans]
+            print(f"{suite} {name} {pipeline}: {sum(r['success'] for r in scans)}/"
+                  f"{len(scans)} in {seconds:.1f} s", file=sys.stderr)
+    summaries = summary(rows, times)
+    text = table(summaries, command)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_csv(args.out / "rows.csv", rows)
+    write_csv(args.out / "summary.csv", summaries)
+    (args.out / "table.md").write_text(text)
+    if args.docs:
+        page = args.docs.read_text()
+        before, rest = page.split(BEGIN, 1)
+        page = before + BEGIN + "\n" + text + rest[rest.index(END):]
+        args.docs.write_text(page)
+    print(text, end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

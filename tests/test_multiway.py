@@ -1,0 +1,141 @@
+"""registration_multiway and ``o3d-spectral reconstruct``: scans in any frames, one model."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import open3d as o3d
+import pytest
+from scipy.spatial.transform import Rotation
+
+import o3d_spectral
+from o3d_spectral.cli import main
+from o3d_spectral.harness import real
+from o3d_spectral.pose_errors import rotation_error, translation_error
+from o3d_spectral.synthetic.models import model_path
+
+VOXEL = 0.005
+
+
+def turned_dragon(angles: tuple[int, ...], seed: int) -> tuple[list, list]:
+    """The dragon scans at ``angles``, each turned by a random rotation: (clouds, their
+    world_from_cloud poses)."""
+    rng = np.random.default_rng(seed)
+    clouds, poses = [], []
+    for angle in angles:
+        path = real.real_dir() / "dragon" / f"dragonStandRight_{angle}.ply"
+        motion = np.eye(4)
+        motion[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        clouds.append(o3d.io.read_point_cloud(str(path)).transform(motion))
+        poses.append(real.dragon_pose(angle) @ np.linalg.inv(motion))
+    return clouds, poses
+
+
+def drill() -> o3d.geometry.PointCloud:
+    """A view-less cloud of another object, the size of the dragon."""
+    mesh = o3d.io.read_triangle_mesh(str(model_path("power_drill")))
+    return o3d.geometry.PointCloud(mesh.vertices)
+
+
+@pytest.fixture(scope="module")
+def dragon_and_drill():
+    """Four dragon scans and a drill, registered: (clouds, truths, copies, result)."""
+    clouds, truths = turned_dragon((0, 24, 48, 72), seed=3)
+    clouds.append(drill())
+    copies = [np.asarray(c.points).copy() for c in clouds]
+    option = o3d_spectral.MultiwayOption(workers=2)
+    return clouds, truths, copies, o3d_spectral.registration_multiway(clouds, VOXEL,
+                                                                      option=option)
+
+
+@pytest.mark.slow
+def test_the_dragon_scans_are_placed_within_5_degrees_and_1_cm(dragon_and_drill):
+    clouds, truths, _, result = dragon_and_drill
+    assert result.poses[0].tolist() == np.eye(4).tolist()
+    for k, truth in enumerate(truths):
+        pose, expected = result.poses[k], np.linalg.inv(truths[0]) @ truth
+        centre = np.asarray(clouds[k].points).mean(axis=0)
+        assert pose.dtype == np.float64 and np.allclose(pose[:3, :3] @ pose[:3, :3].T,
+                                                        np.eye(3))
+        assert rotation_error(pose, expected) < 5.0
+        assert translation_error(pose, expected, center=centre) < 0.01
+    assert len(result.pairs) == 10 and result.nodes == (0, 1, 2, 3)
+    assert len(result.pose_graph.nodes) == 4
+
+
+@pytest.mark.slow
+def test_a_cloud_of_another_object_is_reported_unconnected(dragon_and_drill):
+    clouds, _, copies, result = dragon_and_drill
+    assert result.unconnected == (4,) and result.poses[4] is None
+    assert not any(p.kept for p in result.pairs if 4 in (p.source, p.target))
+    for cloud, points in zip(clouds, copies, strict=True):  # the caller's clouds untouched
+        np.testing.assert_array_equal(np.asarray(cloud.points), points)
+
+
+def test_fewer_than_two_clouds_are_refused():
+    clouds, _ = turned_dragon((0,), seed=0)
+    with pytest.raises(ValueError, match="clouds must hold at least two"):
+        o3d_spectral.registration_multiway(clouds, VOXEL)
+    with pytest.raises(TypeError, match="clouds must be a sequence"):
+        o3d_spectral.registration_multiway(clouds[0], VOXEL)
+
+
+def test_clouds_in_different_units_are_refused_naming_both_extents():
+    points = np.asarray(turned_dragon((0,), seed=0)[0][0].points)
+    millimetres = 1000.0 * points
+    with pytest.raises(ValueError, match=r"clouds\[1\] spans .* m and clouds\[0\] .* m "
+                                         r"\(1000x\): are the clouds in the same units"):
+        o3d_spectral.registration_multiway([points, millimetres], VOXEL)
+    assert np.array_equal(millimetres, 1000.0 * points)  # not scaled in place
+
+
+def test_the_result_is_the_same_whatever_the_workers():
+    clouds, _ = turned_dragon((0, 24, 48), seed=5)
+    arrays = [np.asarray(c.points) for c in clouds]  # numpy input too
+    results = [o3d_spectral.registration_multiway(
+        arrays, 0.008, option=o3d_spectral.MultiwayOption(workers=w)) for w in (1, 2)]
+    for one, two in zip(results[0].poses, results[1].poses, strict=True):
+        np.testing.assert_array_equal(one, two)
+    assert [(p.source, p.target, p.fit) for p in results[0].pairs] == [
+        (p.source, p.target, p.fit) for p in results[1].pairs]
+
+
+def test_options_are_checked_naming_the_field():
+    with pytest.raises(ValueError, match="min_fit"):
+        o3d_spectral.MultiwayOption(min_fit=1.5)
+    with pytest.raises(TypeError, match="workers"):
+        o3d_spectral.MultiwayOption(workers=1.5)
+
+
+@pytest.mark.slow
+def test_reconstruct_writes_the_cloud_the_poses_and_a_picture(tmp_path, capsys):
+    clouds, _ = turned_dragon((0, 24, 48), seed=7)
+    paths = []
+    for k, cloud in enumerate(clouds):
+        paths.append(tmp_path / f"scan{k}.ply")
+        o3d.io.write_point_cloud(str(paths[-1]), cloud)
+    out = tmp_path / "out"
+    assert main(["-q", "reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
+                 str(out), "--json", "--workers", "2"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert sorted(p.name for p in out.iterdir()) == ["merged.ply", "merged.png",
+                                                     "poses.json"]  # no temporary left
+    assert json.loads((out / "poses.json").read_text())["poses"] == printed["poses"]
+    assert printed["unconnected"] == [] and len(printed["poses"]) == 3
+    merged = o3d.io.read_point_cloud(str(out / "merged.ply"))
+    assert len(merged.points) > max(len(c.voxel_down_sample(0.004).points) for c in clouds)
+    assert (out / "merged.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("arguments", [
+    ["ONE", "--voxel-size", "0.005"],
+    ["ONE", "ONE2", "--voxel-size", "-1"],
+    ["ONE", "ONE2", "--voxel-size", "0.005", "--workers", "0"],
+])
+def test_reconstruct_refuses_bad_input_with_exit_2(tmp_path, capsys, arguments):
+    arguments = [str(tmp_path / a) if a.startswith("ONE") else a for a in arguments]
+    assert main(["reconstruct", *arguments, "--out", str(tmp_path / "out")]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 1 and errors[0].startswith("o3d-spectral reconstruct: error: ")
+    assert not (tmp_path / "out").exists()
