@@ -19,6 +19,7 @@ from . import centring
 from ._checks import check_instance, check_number, check_transformation, check_voxel_size
 from .diagnostics import registration_warnings
 from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
+from .io.units import check_same_units
 from .law import Climb, climb
 from .options import (
     CloudOption,
@@ -109,6 +110,7 @@ def start(
         fixed.check(voxel_size, option, cloud)
         target = fixed.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
+    check_same_units(source.points, target.points)  # 50x apart: other units, or a scene to crop
     c, origin = centring.offset(target), None
     prepared = None if ready is None else ready.cloud
     if c is not None:  # far from the origin: register in a frame centred on the target
