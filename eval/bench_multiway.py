@@ -201,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
     parser.add_argument("--docs", type=Path, help="page whose generated block gets the table")
     args = parser.parse_args(argv)
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)  # stdout: the table
     if args.limit_scans < 2:
         parser.error("--limit-scans must be at least 2")
     command = "python eval/bench_multiway.py " + " ".join(

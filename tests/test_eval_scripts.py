@@ -31,6 +31,7 @@ SCRIPTS = (
     "bench_far.py",
     "bench_iteration.py",
     "bench_large.py",
+    "bench_multiway.py",
     "bench_prepared.py",
     "bench_pyramid.py",
     "bench_real.py",
@@ -145,6 +146,18 @@ def test_bench_large(tmp_path):
     assert re.search(r"^20000 points: [\d.]+ s; error [\d.]+ deg, [\d.]+ mm; fitness", printed,
                      re.MULTILINE)
     assert re.search(r"^  climb\s+[\d.]+ s$", printed, re.MULTILINE)
+
+
+def test_bench_multiway(tmp_path):
+    printed = run("bench_multiway.py", "--limit-scans", 3, "--models", 1, "--seeds", 1,
+                  "--workers", 1, "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "rows.csv")
+    assert [(r["suite"], r["pipeline"]) for r in rows] == [
+        (suite, pipeline) for suite in ("dragon", "turntable")
+        for pipeline in ("spectral", "fpfh_ransac_lean") for _ in range(3)]
+    assert {"rotation_error_deg", "translation_error_m", "success"} <= rows[0].keys()
+    assert [row[1] for row in table_rows(printed, "dragon")] == ["seed 0", "**all**"]
+    assert printed.endswith((tmp_path / "table.md").read_text())
 
 
 def test_bench_prepared(suites, tmp_path):

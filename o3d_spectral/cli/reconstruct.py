@@ -131,27 +131,27 @@ def _picture(path: Path, points: np.ndarray, labels: np.ndarray, names: list[str
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
-    if len(points) > PICTURE_POINTS:
-        keep = np.random.default_rng(0).choice(len(points), PICTURE_POINTS, replace=False)
-        points, labels = points[keep], labels[keep]
+    order = np.random.default_rng(0).permutation(len(points))[:PICTURE_POINTS]
+    points, labels = points[order], labels[order]  # shuffled: no scan drawn over the rest
     centred = points - points.mean(axis=0)
     points = centred @ np.linalg.eigh(np.cov(centred.T))[1][:, ::-1]  # largest axis first
-    figure = Figure(figsize=(9, 4.5), dpi=80)
+    figure = Figure(figsize=(11, 4.5), dpi=80)
     FigureCanvasAgg(figure)
     colours = colormaps["tab10"]
     for column, (a, b, title) in enumerate(((0, 1, "principal axes 1, 2"),
                                             (0, 2, "principal axes 1, 3"))):
         axes = figure.add_subplot(1, 2, column + 1)
-        for k in np.unique(labels):
-            mine = labels == k
-            axes.scatter(points[mine, a], points[mine, b], s=0.5, color=colours(k % 10),
-                         label=names[k], rasterized=True)
+        axes.scatter(points[:, a], points[:, b], s=0.5, c=colours(labels % 10),
+                     rasterized=True)
         axes.set_aspect("equal")
         axes.set_title(title)
         axes.set_xlabel("metres")
-    figure.axes[0].legend(markerscale=12, fontsize="small", loc="best")
-    figure.tight_layout()
+    scans = np.unique(labels)
+    handles = [Line2D([], [], ls="", marker="o", color=colours(k % 10)) for k in scans]
+    figure.legend(handles, [names[k] for k in scans], loc="center right", fontsize="small")
+    figure.tight_layout(rect=(0.0, 0.0, 0.8, 1.0))
     figure.savefig(path)
 
 
