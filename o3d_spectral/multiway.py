@@ -47,12 +47,14 @@ def registration_multiway(
        with its ``option.neighbours`` successors, registered by
        :func:`o3d_spectral.registration_spectral_global` (each cloud prepared once as a
        source and once as a target) on ``option.workers`` threads;
-    2. **selection**: a pair becomes an edge when its ``fit`` is high enough and clearly
-       ahead of its ``rival_fit``; odometry-like (never pruned) when it is very high,
-       uncertain otherwise (:class:`MultiwayOption`); each edge's information matrix is
-       Open3D's ``get_information_matrix_from_point_clouds`` on the down-sampled clouds;
+    2. **selection**: a pair becomes an edge when its ``fit`` and ``fitness`` are high
+       enough; odometry-like (never pruned) when its ``fit`` is very high and clearly
+       ahead of its ``rival_fit``, uncertain otherwise (:class:`MultiwayOption`); each
+       edge's information matrix is Open3D's ``get_information_matrix_from_point_clouds``
+       on the down-sampled clouds;
     3. **tree**: the initial poses chained along a maximum spanning tree of the edges
-       weighted by ``fit``, from the first cloud; clouds it does not reach are
+       weighted by ``fit`` (those not clearly ahead of their ``rival_fit`` last), from
+       the first cloud; clouds it does not reach are
        ``unconnected``; the edges that disagree with those poses are dropped (a
        symmetric object's pairs may each be right up to a different symmetry), and a
        cloud that only weak tree edges place while its other pairs disagree is left

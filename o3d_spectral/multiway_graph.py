@@ -22,7 +22,8 @@ from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
 from .parallel import one_open3d_thread, thread_map
 from .refinement import point_to_plane_icp
 
-__all__ = ["poses_from_pairs", "checked_clouds", "selected", "maximum_spanning_tree"]
+__all__ = ["poses_from_pairs", "checked_clouds", "selected", "tree_weight",
+           "maximum_spanning_tree"]
 
 reg = o3d.pipelines.registration
 #: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
@@ -136,11 +137,19 @@ def _down_sampled(arrays: CloudArrays, voxel_size: float) -> o3d.geometry.PointC
 def selected(record: PairwiseRecord, option: MultiwayOption) -> PairwiseRecord:
     """The record with ``kept`` and ``uncertain`` set by ``option``'s thresholds."""
     lead = record.fit - record.rival_fit
-    kept = (record.fit >= option.min_fit and record.fitness >= option.min_fitness
-            and lead >= option.rival_margin)
+    kept = record.fit >= option.min_fit and record.fitness >= option.min_fitness
     certain = kept and record.fit >= option.certain_fit and lead >= option.certain_margin
     return PairwiseRecord(record.source, record.target, record.transformation,
                           record.fitness, record.fit, record.rival_fit, kept, not certain)
+
+
+def tree_weight(record: PairwiseRecord, option: MultiwayOption) -> float:
+    """A kept pair's weight in the maximum spanning tree: its ``fit``, less 1 when it
+    does not lead its ``rival_fit`` by ``option.rival_margin`` (such pairs join the tree
+    only where no leading pair does: a pair of views of a symmetric object has a rival
+    as good, its symmetric pose, and may still be right)."""
+    led = record.fit - record.rival_fit >= option.rival_margin
+    return record.fit if led else record.fit - 1.0
 
 
 def _placed(
@@ -156,7 +165,8 @@ def _placed(
     until no cloud is contradicted."""
     while True:
         kept = [r for r in records if r.kept]
-        tree = maximum_spanning_tree(n, [(r.source, r.target, r.fit) for r in kept])
+        tree = maximum_spanning_tree(n, [(r.source, r.target, tree_weight(r, option))
+                                         for r in kept])
         poses = _chained(n, tree, {(r.source, r.target): r.transformation for r in kept})
         agree = [r.kept and _fits_tree(r, tree, poses, centres, voxel_size, option)
                  for r in records]

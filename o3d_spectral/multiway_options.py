@@ -29,13 +29,15 @@ class MultiwayOption:
         See ``max_all_pairs``.
     min_fit : float, default 0.3
         A pair's result becomes an edge of the pose graph only when its ``fit`` is at
-        least this, its ``fitness`` at least ``min_fitness`` and its ``fit`` leads its
-        ``rival_fit`` by ``rival_margin``: a pair whose best pose does not fit clearly
-        better than a distinct one is as likely wrong as right.
+        least this and its ``fitness`` at least ``min_fitness`` (and it agrees with the
+        tree: ``cycle_degrees``).
     min_fitness : float, default 0.1
         See ``min_fit``.
     rival_margin : float, default 0.05
-        See ``min_fit``.
+        A pair whose ``fit`` leads its ``rival_fit`` by less (its best pose does not fit
+        clearly better than a distinct one) joins the spanning tree only where no leading
+        pair does; it may still be an edge (views of a symmetric object have a rival as
+        good: their symmetric pose).
     cycle_degrees : float, default 10.0
         A kept pair becomes an edge only when it agrees with the poses chained along the
         maximum spanning tree: within this angle and ``cycle_voxels`` of them (pairs of
