@@ -28,6 +28,7 @@ import argparse
 import csv
 import itertools
 import re
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -180,7 +181,14 @@ def table(rows: list[dict], command: str) -> str:
                        f"{s['seconds']:.1f}"] if s else ["-", "-"])
         label = f"**{name}**" if name == "all" else name
         lines.append(f"| {suite} | {label} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + f"\n\nProduced by `{command}`.\n"
+    return "\n".join(lines) + f"\n\nProduced by `{command}` at commit {_commit()}.\n"
+
+
+def _commit() -> str:
+    """The short hash of the checked-out commit, or "unknown" outside a git checkout."""
+    done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, cwd=Path(__file__).parent, check=False)
+    return done.stdout.strip() or "unknown"
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
