@@ -64,6 +64,10 @@ def registration_multiway(
     5. **refinement** (``option.refine``): every pair overlapping at the optimised poses
        registered again by point-to-plane ICP from them, and the graph optimised again.
 
+    The pairwise calls' low-fit warnings are not logged during the call (scans that do
+    not overlap fit poorly, and the selection expects it); each pair's ``fit`` is in
+    ``result.pairs``.
+
     Parameters
     ----------
     clouds : sequence of PointCloud, tensor PointCloud or ndarray
@@ -74,10 +78,6 @@ def registration_multiway(
         Voxel edge, metres, of every pairwise registration.
     option : MultiwayOption, optional
         Pairs, selection, optimisation, threads and progress.
-
-    The pairwise calls' low-fit warnings are not logged during the call (scans that do
-    not overlap fit poorly, and the selection expects it); each pair's ``fit`` is in
-    ``result.pairs``.
 
     Returns
     -------
@@ -95,7 +95,8 @@ def registration_multiway(
     Examples
     --------
     >>> result = o3d_spectral.registration_multiway(scans, 0.005)  # doctest: +SKIP
-    >>> merged = [scan.transform(pose) for scan, pose in zip(scans, result.poses)]  # doctest: +SKIP
+    >>> placed = [o3d.geometry.PointCloud(scan).transform(pose)  # doctest: +SKIP
+    ...           for scan, pose in zip(scans, result.poses) if pose is not None]
     """
     start = time.perf_counter()
     voxel_size = check_voxel_size(voxel_size)
