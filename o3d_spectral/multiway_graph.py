@@ -42,6 +42,10 @@ def poses_from_pairs(
 ) -> MultiwayResult:
     """Steps 2-5 of :func:`registration_multiway` on pairwise results made by any method.
 
+    Open3D's own parallel loops run on one thread meanwhile
+    (:func:`o3d_spectral.parallel.one_open3d_thread`): the result repeats to the bit,
+    whatever ``option.workers``.
+
     Parameters
     ----------
     clouds, voxel_size, option
@@ -54,9 +58,11 @@ def poses_from_pairs(
     -------
     MultiwayResult
 
-    Open3D's own parallel loops run on one thread meanwhile
-    (:func:`o3d_spectral.parallel.one_open3d_thread`): the result repeats to the bit,
-    whatever ``option.workers``.
+    Raises
+    ------
+    ValueError, TypeError
+        As :func:`registration_multiway`, and for a record whose clouds are not
+        ``0 <= source < target < len(clouds)``.
     """
     with one_open3d_thread():
         return _poses_from_pairs(clouds, voxel_size, records, option)
@@ -73,6 +79,10 @@ def _poses_from_pairs(
     option = option or MultiwayOption()
     arrays = checked_clouds(clouds)
     n = len(arrays)
+    for k, r in enumerate(records):
+        if not 0 <= r.source < r.target < n:
+            raise ValueError(f"records[{k}] pairs clouds {r.source} and {r.target}: "
+                             f"need 0 <= source < target < {n} (the number of clouds)")
     downs = thread_map(lambda a: _down_sampled(a, voxel_size), arrays, option.workers)
     distance = option.distance_voxels * voxel_size
     centres = [a.points.mean(axis=0) for a in arrays]

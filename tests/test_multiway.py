@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 import o3d_spectral
 from o3d_spectral.cli import main
 from o3d_spectral.harness import real
+from o3d_spectral.multiway import poses_from_pairs
 from o3d_spectral.pose_errors import rotation_error, translation_error
 from o3d_spectral.synthetic.models import model_path
 
@@ -139,3 +140,11 @@ def test_reconstruct_refuses_bad_input_with_exit_2(tmp_path, capsys, arguments):
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 1 and errors[0].startswith("o3d-spectral reconstruct: error: ")
     assert not (tmp_path / "out").exists()
+
+
+def test_pairs_of_clouds_that_do_not_exist_are_refused():
+    clouds, _ = turned_dragon((0, 24), seed=0)
+    record = o3d_spectral.PairwiseRecord(0, 2, np.eye(4), 1.0, 1.0, 0.0, kept=False,
+                                         uncertain=True)
+    with pytest.raises(ValueError, match=r"records\[0\] pairs clouds 0 and 2"):
+        poses_from_pairs(clouds, VOXEL, [record])
