@@ -110,10 +110,9 @@ def fpfh_records(clouds: list, voxel: float, seed: int) -> list:
 
 
 def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline: str,
-            seed: int, workers: int | None) -> tuple[list[dict], float]:
+            seed: int, option: o3d_spectral.MultiwayOption) -> tuple[list[dict], float]:
     """One set registered by ``pipeline``: a row per scan (errors, success) and seconds."""
     start = time.perf_counter()
-    option = o3d_spectral.MultiwayOption(workers=workers)
     if pipeline == "spectral":
         result = o3d_spectral.registration_multiway(clouds, voxel, option=option)
     else:
@@ -165,7 +164,7 @@ def summary(rows: list[dict], times: dict) -> list[dict]:
     return out
 
 
-def table(rows: list[dict], command: str) -> str:
+def table(rows: list[dict], command: str, commit: str) -> str:
     """The Markdown table: one line per suite and set, both pipelines side by side."""
     by_key = {(s["suite"], s["set"], s["pipeline"]): s for s in rows}
     lines = ["| suite | set | " + " | ".join(f"{p}: right | {p}: s" for p in PIPELINES)
@@ -181,7 +180,7 @@ def table(rows: list[dict], command: str) -> str:
                        f"{s['seconds']:.1f}"] if s else ["-", "-"])
         label = f"**{name}**" if name == "all" else name
         lines.append(f"| {suite} | {label} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + f"\n\nProduced by `{command}` at commit {_commit()}.\n"
+    return "\n".join(lines) + f"\n\nProduced by `{command}` at commit {commit}.\n"
 
 
 def _commit() -> str:
@@ -206,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit-scans", type=int, default=VIEWS, help="scans per set")
     parser.add_argument("--pipelines", nargs="+", choices=PIPELINES, default=list(PIPELINES))
     parser.add_argument("--workers", type=int, default=None, help="threads (all cores)")
+    parser.add_argument("--no-refine", action="store_true",
+                        help="MultiwayOption(refine=False): the first optimisation's poses")
     parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
     parser.add_argument("--docs", type=Path, help="page whose generated block gets the table")
     args = parser.parse_args(argv)
@@ -215,17 +216,18 @@ def main(argv: list[str] | None = None) -> int:
     command = "python eval/bench_multiway.py " + " ".join(
         a for a in (argv if argv is not None else sys.argv[1:]))
     command = re.sub(r"--out \S+", "--out OUT", re.sub(r" --docs \S+", "", command))
-    rows, times = [], {}
+    commit, rows, times = _commit(), [], {}
+    option = o3d_spectral.MultiwayOption(workers=args.workers, refine=not args.no_refine)
     for suite, name, seed, clouds, truths, symmetries, voxel in sets(args):
         for pipeline in args.pipelines:
             scans, seconds = run_set(clouds, truths, symmetries, voxel, pipeline, seed,
-                                     args.workers)
+                                     option)
             times[(suite, name, pipeline)] = seconds
             rows += [{"suite": suite, "set": name, "pipeline": pipeline, **r} for r in scans]
             print(f"{suite} {name} {pipeline}: {sum(r['success'] for r in scans)}/"
                   f"{len(scans)} in {seconds:.1f} s", file=sys.stderr)
     summaries = summary(rows, times)
-    text = table(summaries, command)
+    text = table(summaries, command, commit)
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(args.out / "rows.csv", rows)
     write_csv(args.out / "summary.csv", summaries)
