@@ -142,6 +142,19 @@ def test_reconstruct_refuses_bad_input_with_exit_2(tmp_path, capsys, arguments):
     assert not (tmp_path / "out").exists()
 
 
+def test_reconstruct_refuses_scans_in_different_units_naming_the_files(tmp_path, capsys):
+    cloud = turned_dragon((0,), seed=0)[0][0]
+    metres, millimetres = tmp_path / "metres.ply", tmp_path / "millimetres.ply"
+    o3d.io.write_point_cloud(str(metres), cloud)
+    o3d.io.write_point_cloud(str(millimetres), o3d.geometry.PointCloud(cloud).scale(
+        1000.0, center=(0.0, 0.0, 0.0)))
+    assert main(["-q", "reconstruct", str(metres), str(millimetres), "--voxel-size", "0.005",
+                 "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert f"error: {millimetres} spans" in error and f"and {metres} 0." in error
+    assert not (tmp_path / "out").exists()
+
+
 def test_pairs_of_clouds_that_do_not_exist_are_refused():
     clouds, _ = turned_dragon((0, 24), seed=0)
     record = o3d_spectral.PairwiseRecord(0, 2, np.eye(4), 1.0, 1.0, 0.0, kept=False,

@@ -2,11 +2,12 @@
 
 Registers the scans into the first one's frame with
 :func:`o3d_spectral.registration_multiway` (no initial poses) and writes to ``DIR``:
-``merged.ply`` (every placed scan moved by its pose, thinned to half the voxel),
+``merged.ply`` (every placed scan moved by its pose, merged, thinned to half the voxel),
 ``poses.json`` (each file's 4x4 pose, the unconnected files, the pairs) and
-``merged.png`` (the merged cloud coloured by scan, seen from above and from the side).
+``merged.png`` (the merged cloud coloured by scan, seen along its principal axes).
 The three are written to temporary files in ``DIR`` and renamed once all are written:
-a failed run leaves none of them half written.
+a failed run leaves none of them half written. Scans the registration refuses before
+any work (in different units, too few points) are a usage error, named by file (exit 2).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import argparse
 import json
 import logging
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -109,19 +111,20 @@ def _progress(args: argparse.Namespace):
 
 
 def _merged(clouds: list, poses: tuple, voxel_size: float):
-    """The placed clouds moved by their poses, one cloud thinned to half the voxel, and
-    the scan index of each of its points."""
+    """The placed clouds moved by their poses, merged and thinned to one point (the mean)
+    per cell of half the voxel, and the scan index of each point (that of the first
+    point in its cell)."""
     import open3d as o3d
 
-    merged, labels = o3d.geometry.PointCloud(), []
+    whole, scans = o3d.geometry.PointCloud(), []
     for k, (cloud, pose) in enumerate(zip(clouds, poses, strict=True)):
-        if pose is None:
-            continue
-        moved = o3d.geometry.PointCloud(cloud).transform(pose).voxel_down_sample(
-            voxel_size / 2)
-        merged += moved
-        labels.append(np.full(len(moved.points), k))
-    return merged, np.concatenate(labels)
+        if pose is not None:
+            whole += o3d.geometry.PointCloud(cloud).transform(pose)
+            scans.append(np.full(len(cloud.points), k))
+    merged, _, cells = whole.voxel_down_sample_and_trace(
+        voxel_size / 2, whole.get_min_bound(), whole.get_max_bound())
+    first = np.array([cell[0] for cell in cells], dtype=np.int64)
+    return merged, np.concatenate(scans)[first]
 
 
 def _picture(path: Path, points: np.ndarray, labels: np.ndarray, names: list[str]) -> None:
@@ -201,13 +204,20 @@ def _write_all(out: Path, writers: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     import o3d_spectral
     from o3d_spectral._extras import require_modules
-    from o3d_spectral.cli import results
+    from o3d_spectral.cli import UsageError, results
 
     _check_args(args)
     require_modules("this command", "matplotlib")
     clouds = [_read(path) for path in args.scans]
     option = o3d_spectral.MultiwayOption(workers=args.workers, progress=_progress(args))
-    result = o3d_spectral.registration_multiway(clouds, args.voxel_size, option=option)
+    try:
+        result = o3d_spectral.registration_multiway(clouds, args.voxel_size, option=option)
+    except ValueError as error:  # scans refused before any work: named by file, exit 2
+        if "clouds[" not in str(error):
+            raise
+        named = re.sub(r"clouds\[(\d+)\]", lambda m: str(args.scans[int(m.group(1))]),
+                       str(error))
+        raise UsageError(named) from None
     merged, labels = _merged(clouds, result.poses, args.voxel_size)
     summary = _summary(args, result)
     names = [p.name for p in args.scans]
