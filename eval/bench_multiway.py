@@ -205,8 +205,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit-scans", type=int, default=VIEWS, help="scans per set")
     parser.add_argument("--pipelines", nargs="+", choices=PIPELINES, default=list(PIPELINES))
     parser.add_argument("--workers", type=int, default=None, help="threads (all cores)")
-    parser.add_argument("--no-refine", action="store_true",
-                        help="MultiwayOption(refine=False): the first optimisation's poses")
+    parser.add_argument("--refine", action="store_true",
+                        help="MultiwayOption(refine=True): ICP from the optimised poses, "
+                        "optimised again")
     parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
     parser.add_argument("--docs", type=Path, help="page whose generated block gets the table")
     args = parser.parse_args(argv)
@@ -217,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         a for a in (argv if argv is not None else sys.argv[1:]))
     command = re.sub(r"--out \S+", "--out OUT", re.sub(r" --docs \S+", "", command))
     commit, rows, times = _commit(), [], {}
-    option = o3d_spectral.MultiwayOption(workers=args.workers, refine=not args.no_refine)
+    option = o3d_spectral.MultiwayOption(workers=args.workers, refine=args.refine)
     for suite, name, seed, clouds, truths, symmetries, voxel in sets(args):
         for pipeline in args.pipelines:
             scans, seconds = run_set(clouds, truths, symmetries, voxel, pipeline, seed,

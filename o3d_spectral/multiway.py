@@ -5,8 +5,8 @@
 whose result clearly fits, places every cloud by a maximum spanning tree of those pairs
 weighted by their ``fit``, and optimises the poses over the kept pairs that agree with
 the tree by Open3D's pose graph (Levenberg-Marquardt with a line process that prunes
-wrong edges). A refinement then registers again, by point-to-plane ICP from the optimised
-poses, every pair that overlaps there, and optimises that graph.
+wrong edges). An optional refinement registers again, by point-to-plane ICP from the
+optimised poses, every pair that overlaps there, and optimises that graph.
 ``docs/multiway.md`` describes the steps and their measure.
 """
 
@@ -61,8 +61,9 @@ def registration_multiway(
        unconnected;
     4. **optimisation**: Open3D's ``global_optimization`` (Levenberg-Marquardt, line
        process with ``option.edge_prune_threshold``, reference node 0);
-    5. **refinement** (``option.refine``): every pair overlapping at the optimised poses
-       registered again by point-to-plane ICP from them, and the graph optimised again.
+    5. **refinement** (``option.refine``, off by default): every pair overlapping at the
+       optimised poses registered again by point-to-plane ICP from them, and the graph
+       optimised again.
 
     The pairwise calls' low-fit warnings are not logged during the call (scans that do
     not overlap fit poorly, and the selection expects it); each pair's ``fit`` is in

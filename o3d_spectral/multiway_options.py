@@ -56,10 +56,12 @@ class MultiwayOption:
     edge_prune_threshold : float, default 0.25
         Open3D's line-process threshold: an uncertain edge whose weight falls under it is
         dropped and the graph optimised again.
-    refine : bool, default True
+    refine : bool, default False
         After the first optimisation, each pair whose clouds overlap at the optimised
         poses (ICP ``fitness`` at least ``refine_min_fitness``) is registered again by
         point-to-plane ICP from those poses and the graph of those edges optimised again.
+        Off by default: on ``eval/bench_multiway.py`` it placed the same scans and did
+        not lower their errors (``docs/multiway.md``).
     refine_min_fitness : float, default 0.3
         See ``refine``.
     workers : int or None, default None
@@ -81,7 +83,7 @@ class MultiwayOption:
     certain_margin: float = 0.2
     distance_voxels: float = 1.5
     edge_prune_threshold: float = 0.25
-    refine: bool = True
+    refine: bool = False
     refine_min_fitness: float = 0.3
     workers: int | None = None
     progress: Callable[[int, int], None] | None = None

@@ -92,12 +92,14 @@ def test_clouds_in_different_units_are_refused_naming_both_extents():
 
 
 def test_the_result_is_the_same_whatever_the_workers():
-    clouds, _ = turned_dragon((0, 24, 48), seed=5)
+    clouds, truths = turned_dragon((0, 24, 48), seed=5)
     arrays = [np.asarray(c.points) for c in clouds]  # numpy input too
     results = [o3d_spectral.registration_multiway(
-        arrays, 0.008, option=o3d_spectral.MultiwayOption(workers=w)) for w in (1, 2)]
-    for one, two in zip(results[0].poses, results[1].poses, strict=True):
+        arrays, 0.008, option=o3d_spectral.MultiwayOption(workers=w, refine=True))
+        for w in (1, 2)]  # the refinement too
+    for k, (one, two) in enumerate(zip(results[0].poses, results[1].poses, strict=True)):
         np.testing.assert_array_equal(one, two)
+        assert rotation_error(one, np.linalg.inv(truths[0]) @ truths[k]) < 5.0
     assert [(p.source, p.target, p.fit) for p in results[0].pairs] == [
         (p.source, p.target, p.fit) for p in results[1].pairs]
 
