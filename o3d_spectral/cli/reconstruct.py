@@ -112,8 +112,8 @@ def _progress(args: argparse.Namespace):
 
 def _merged(clouds: list, poses: tuple, voxel_size: float):
     """The placed clouds moved by their poses, merged and thinned to one point (the mean)
-    per cell of half the voxel, and the scan index of each point (that of the first
-    point in its cell)."""
+    per cell of half the voxel, and the scan index of each point (that of a point of its
+    cell drawn at random, seeded: where scans overlap, each shows in the picture)."""
     import open3d as o3d
 
     whole, scans = o3d.geometry.PointCloud(), []
@@ -123,8 +123,9 @@ def _merged(clouds: list, poses: tuple, voxel_size: float):
             scans.append(np.full(len(cloud.points), k))
     merged, _, cells = whole.voxel_down_sample_and_trace(
         voxel_size / 2, whole.get_min_bound(), whole.get_max_bound())
-    first = np.array([cell[0] for cell in cells], dtype=np.int64)
-    return merged, np.concatenate(scans)[first]
+    rng = np.random.default_rng(0)
+    drawn = np.array([cell[rng.integers(len(cell))] for cell in cells], dtype=np.int64)
+    return merged, np.concatenate(scans)[drawn]
 
 
 def _picture(path: Path, points: np.ndarray, labels: np.ndarray, names: list[str]) -> None:
