@@ -55,7 +55,8 @@ def prepared_cloud(
 class PreparedSource:
     """A source cloud with what the registration derives from it alone.
 
-    Build it with :func:`prepare`. Attributes are read-only.
+    Build it with :func:`prepare`. Attributes are read-only, the prepared cloud's arrays
+    too (not writeable: an edit would move every later result).
 
     Attributes
     ----------
@@ -79,6 +80,12 @@ class PreparedSource:
     normal_radius: float | None
     camera_location: tuple[float, float, float] | None
     cloud: PreparedCloud
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self.cloud):
+            value = getattr(self.cloud, field.name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
 
     def check(
         self, voxel_size: float, option: SpectralRegistrationOption | None,

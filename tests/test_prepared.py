@@ -81,3 +81,12 @@ def test_prepare_checks_its_arguments(pair):
         o3d_spectral.prepare(source, VOXEL, option="fast")
     with pytest.raises(TypeError, match="source"):
         o3d_spectral.prepare("model.ply", VOXEL)
+
+
+def test_a_prepared_source_cannot_be_edited(pair):
+    """Its arrays are not writeable: an edit would move every later result."""
+    ready = o3d_spectral.prepare(pair[0], VOXEL)
+    for array in (ready.cloud.points, ready.cloud.normals, ready.cloud.point_normals,
+                  ready.cloud.normal_points):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0, 0] = 1.0
