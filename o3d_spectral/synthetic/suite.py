@@ -127,6 +127,19 @@ def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -
     return entries
 
 
+def _empty_folder(out_dir: str | Path) -> Path:
+    """``out_dir`` created, or checked to be an empty folder (``ValueError`` naming it)."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out_dir {str(out)!r} is a file, not a folder: choose a folder")
+    if out.is_dir() and any(out.iterdir()):
+        raise ValueError(
+            f"out_dir {str(out)!r} is not empty: write the suite to a new folder (or remove "
+            "this one first)")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
 def make_suite(
     condition: str,
     n: int,
@@ -150,7 +163,9 @@ def make_suite(
     seed : int
         Suite seed (>= 0); the same seed gives byte-identical files.
     out_dir : str or Path
-        Folder to create or overwrite (instance files and ``manifest.json``).
+        Folder to create, or an empty one (instance files and ``manifest.json``): a suite
+        written over another would leave the other's files, and a run resumed on it would
+        keep rows of the other's instances.
     options : SceneOptions, optional
         Generator settings, stored in the manifest.
     workers : int, optional
@@ -166,8 +181,7 @@ def make_suite(
     """
     _check_suite_arguments(condition, n, seed, workers)
     options = SceneOptions() if options is None else options
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _empty_folder(out_dir)
     names = model_names()
     tasks = [(condition, names[i % len(names)], seed, i, options, str(out)) for i in range(n)]
     entries = _build_all(tasks, workers, desc=f"{condition} suite", progress=progress)
