@@ -40,3 +40,79 @@ def test_a_run_refuses_a_suite_rebuilt_in_place_with_the_same_seed(small_suite, 
     with pytest.raises(ValueError, match="manifest changed"):
         prepare_session(run, [load_suite(rebuilt)], settings, ["m"])
     prepare_session(run, [load_suite(small_suite)], settings, ["m"])  # the same suite: resumed
+
+
+# ---------------------------------------------------------------------- whole files
+
+
+def _cloud(n=50):
+    import numpy as np
+    import open3d as o3d
+
+    return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
+        np.random.default_rng(0).random((n, 3))))
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".pcd", ".xyz"])
+def test_a_cloud_cut_short_by_a_full_disk_is_refused_and_the_old_file_kept(tmp_path, suffix):
+    """Open3D's writer reports success on a full disk: the file written is checked."""
+    import open3d as o3d
+
+    from o3d_spectral.io._files import atomic_write_cloud
+
+    path = tmp_path / f"moved{suffix}"
+    path.write_bytes(b"old")
+    cloud = _cloud()
+
+    def full_disk(name):
+        o3d.io.write_point_cloud(name, cloud)
+        with open(name, "r+b") as file:
+            file.truncate(file.seek(0, 2) // 2 if suffix != ".xyz" else 0)
+        return True
+
+    with pytest.raises(OSError, match=f"could not write .*moved\\{suffix}"):
+        atomic_write_cloud(path, len(cloud.points), full_disk)
+    assert path.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no temporary left
+    atomic_write_cloud(path, len(cloud.points), lambda name: o3d.io.write_point_cloud(name, cloud))
+    assert len(o3d.io.read_point_cloud(str(path)).points) == len(cloud.points)
+
+
+def test_register_save_on_a_full_disk_fails_and_saves_nothing(tmp_path, monkeypatch, capsys):
+    import open3d as o3d
+
+    from o3d_spectral.cli import main
+
+    source, target = tmp_path / "s.ply", tmp_path / "t.ply"
+    cloud = _cloud(400)
+    o3d.io.write_point_cloud(str(source), cloud)
+    o3d.io.write_point_cloud(str(target), cloud)
+    real = o3d.io.write_point_cloud
+
+    def full_disk(name, geometry, *args, **kwargs):
+        real(name, geometry, *args, **kwargs)
+        with open(name, "r+b") as file:
+            file.truncate(100)
+        return True
+
+    monkeypatch.setattr(o3d.io, "write_point_cloud", full_disk)
+    status = main(["register", str(source), str(target), "--voxel-size", "0.1",
+                   "--save", str(tmp_path / "moved.ply")])
+    assert status != 0
+    assert "moved.ply" in capsys.readouterr().err
+    assert not (tmp_path / "moved.ply").exists()
+
+
+def test_register_refuses_to_save_onto_its_source(tmp_path, capsys):
+    import open3d as o3d
+
+    from o3d_spectral.cli import main
+
+    source, target = tmp_path / "s.ply", tmp_path / "t.ply"
+    o3d.io.write_point_cloud(str(source), _cloud(400))
+    o3d.io.write_point_cloud(str(target), _cloud(400))
+    before = source.read_bytes()
+    assert main(["register", str(source), str(target), "--voxel-size", "0.1",
+                 "--save", str(tmp_path / "." / "s.ply")]) == 2
+    assert "--save" in capsys.readouterr().err
+    assert source.read_bytes() == before

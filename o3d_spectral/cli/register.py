@@ -177,11 +177,16 @@ def _read_init(path: Path) -> np.ndarray:
     return check_transformation(init, name=f"--init {path}")
 
 
-def _check_save(path: Path) -> None:
+def _check_save(path: Path, inputs: tuple[Path, ...]) -> None:
     """Refuse ``--save FILE`` before any work when Open3D could not write it: an
     extension it does not write, a folder that does not exist or cannot be written to,
-    or a folder in its place."""
+    or a folder in its place; or when it is one of the ``inputs`` (it would replace it)."""
     from o3d_spectral.cli import UsageError
+
+    for given in inputs:
+        if path.resolve() == given.resolve():
+            raise UsageError(f"--save {path} is an input of the command ({given}): saving "
+                             "there would replace it; choose another file")
 
     if path.suffix.lower() not in SAVE_FORMATS:
         raise UsageError(f"--save {path}: Open3D writes a point cloud to "
@@ -255,12 +260,13 @@ def run(args: argparse.Namespace) -> int:
     import o3d_spectral
     from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import results
+    from o3d_spectral.io._files import atomic_write_cloud
 
     auto = args.voxel_size == "auto"
     if not auto:
         check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
     if args.save:
-        _check_save(args.save)
+        _check_save(args.save, tuple(p for p in (args.source, args.target, args.init) if p))
     init = _read_init(args.init) if args.init else None
     source, target = (_read_logged(path, args.drop_nan) for path in (args.source, args.target))
     voxel_size = o3d_spectral.suggest_voxel_size(source, target) if auto else args.voxel_size
@@ -290,8 +296,11 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(result, voxel_size)
     if args.save:
         moved = o3d.geometry.PointCloud(source).transform(result.transformation)
-        if not o3d.io.write_point_cloud(str(args.save), moved):
-            raise OSError(f"--save: Open3D could not write {args.save}")
+        try:
+            atomic_write_cloud(args.save, len(moved.points),
+                               lambda name: o3d.io.write_point_cloud(name, moved))
+        except OSError as error:
+            raise OSError(f"--save: {error}") from None
         log.info("wrote %s", args.save)
     out = results()
     if args.json:

@@ -35,6 +35,7 @@ from scipy.spatial.transform import Rotation
 
 from o3d_spectral._bundled import bundled_folder
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
+from o3d_spectral.io._files import atomic_write_cloud
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.symmetry import Symmetry, surface_symmetry
 
@@ -197,7 +198,8 @@ def write_dragon_pairs(out: str | Path, max_step: int = 72) -> Path:
         cloud = _cloud(f"dragon/dragonStandRight_{angle}.ply")
         cloud.estimate_normals()
         cloud.orient_normals_towards_camera_location(np.asarray(DRAGON_SENSOR))
-        o3d.io.write_point_cloud(str(out / f"cloud_bin_{k}.ply"), cloud)
+        atomic_write_cloud(out / f"cloud_bin_{k}.ply", len(cloud.points),
+                           lambda name, cloud=cloud: o3d.io.write_point_cloud(name, cloud))
         clouds.append(cloud)
     log, info = {}, {}
     order = [3, 4, 5, 0, 1, 2]  # Open3D's (rotation, translation) to translation first

@@ -8,7 +8,9 @@ declares; what Open3D returns is then checked for non-finite coordinates. Every 
 is a ``ValueError`` (``FileNotFoundError`` for a missing file) naming the file.
 
 :func:`atomic_write_text` replaces a file whole (a suite's manifest, a run's session
-files and table), never leaving half of it; it imports neither Open3D nor the harness.
+files and table), never leaving half of it, and :func:`atomic_write_cloud` a cloud file
+(written by a writer given, checked, then renamed: Open3D's writers report success on a
+full disk); they import neither Open3D nor the harness.
 """
 
 from __future__ import annotations
@@ -16,11 +18,12 @@ from __future__ import annotations
 import logging
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_write_text", "check_cloud_file", "check_finite"]
+__all__ = ["atomic_write_cloud", "atomic_write_text", "check_cloud_file", "check_finite"]
 
 log = logging.getLogger(__name__)
 
@@ -202,3 +205,76 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def _declared_points(path: Path) -> int | None:
+    """The number of points a PLY or PCD file's header declares (None for other formats)."""
+    suffix = path.suffix.lower()
+    if suffix not in (".ply", ".pcd"):
+        return None
+    lines, _ = _header(path, b"end_header" if suffix == ".ply" else b"DATA")
+    for line in lines:
+        words = line.split()
+        if suffix == ".ply" and words[:2] == ["element", "vertex"] and len(words) == 3:
+            return int(words[2])
+        if suffix == ".pcd" and words[:1] == ["POINTS"] and len(words) == 2:
+            return int(words[1])
+    return 0
+
+
+def _check_written(path: Path, points: int) -> None:
+    """``OSError`` unless ``path`` holds ``points`` points, all its data there."""
+    try:
+        check_cloud_file(path)
+        declared = _declared_points(path)
+        whole = (declared == points if declared is not None
+                 else points == 0 or _has_lines(path, 0, points))
+    except ValueError as error:
+        raise OSError(f"the cloud written is incomplete ({error})") from None
+    if not whole:
+        raise OSError(f"the cloud written holds fewer than its {points} points")
+
+
+def atomic_write_cloud(path: str | Path, points: int, write: Callable[[str], bool]) -> Path:
+    """Write a cloud of ``points`` points to ``path`` whole or not at all.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to create or replace; its suffix chooses the format.
+    points : int
+        The number of points the cloud holds, checked in the file written.
+    write : callable
+        Writes the cloud to the path it is given (a temporary file of the same suffix, in
+        the same folder) and returns whether it did (as Open3D's ``write_point_cloud``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OSError
+        Naming ``path``, when the writer fails or the file it wrote is incomplete (a full
+        disk): ``path`` is left as it was.
+    """
+    path = Path(path)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                         suffix=path.suffix)
+    try:
+        os.chmod(handle, 0o666 & ~_umask())
+        os.close(handle)
+        if not write(temporary):
+            raise OSError("the writer reported a failure")
+        _check_written(Path(temporary), points)
+        with open(temporary, "rb") as file:
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except OSError as error:
+        Path(temporary).unlink(missing_ok=True)
+        raise OSError(f"could not write {path}: {error}; check the disk has room") from None
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path

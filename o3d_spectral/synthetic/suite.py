@@ -19,7 +19,7 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral import _extras
-from o3d_spectral.io._files import check_cloud_file, check_finite
+from o3d_spectral.io._files import atomic_write_cloud, check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
 from o3d_spectral.synthetic.models import model_names
@@ -54,8 +54,7 @@ def _write_cloud(path: Path, points: np.ndarray, normals: np.ndarray, labels=Non
         cloud.point.object_id = o3d.core.Tensor(
             np.ascontiguousarray(labels, dtype=np.int32).reshape(-1, 1)
         )
-    if not o3d.t.io.write_point_cloud(str(path), cloud):
-        raise OSError(f"could not write {path}")
+    atomic_write_cloud(path, len(points), lambda name: o3d.t.io.write_point_cloud(name, cloud))
 
 
 def _build(task: tuple[str, str, int, int, SceneOptions, str]) -> dict:
