@@ -201,6 +201,20 @@ def _check_save(path: Path, inputs: tuple[Path, ...]) -> None:
         raise PermissionError(f"--save {path}: not allowed to write there")
 
 
+def _save(path: Path, cloud) -> None:
+    """Write ``--save``'s cloud whole, or not at all (``OSError`` naming it)."""
+    import open3d as o3d
+
+    from o3d_spectral.io._files import atomic_write_cloud
+
+    try:
+        atomic_write_cloud(path, len(cloud.points),
+                           lambda name: o3d.io.write_point_cloud(name, cloud))
+    except OSError as error:
+        raise OSError(f"--save: {error}") from None
+    log.info("wrote %s", path)
+
+
 def _viewpoint(text: str) -> str | tuple[float, ...] | None:
     """``--target-viewpoint``: "auto", None ("none") or three coordinates."""
     from o3d_spectral.cli import UsageError
@@ -260,7 +274,6 @@ def run(args: argparse.Namespace) -> int:
     import o3d_spectral
     from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import results
-    from o3d_spectral.io._files import atomic_write_cloud
 
     auto = args.voxel_size == "auto"
     if not auto:
@@ -295,13 +308,7 @@ def run(args: argparse.Namespace) -> int:
              result.run_time, result.fitness, result.inlier_rmse, result.num_iterations)
     summary = _summary(result, voxel_size)
     if args.save:
-        moved = o3d.geometry.PointCloud(source).transform(result.transformation)
-        try:
-            atomic_write_cloud(args.save, len(moved.points),
-                               lambda name: o3d.io.write_point_cloud(name, moved))
-        except OSError as error:
-            raise OSError(f"--save: {error}") from None
-        log.info("wrote %s", args.save)
+        _save(args.save, o3d.geometry.PointCloud(source).transform(result.transformation))
     out = results()
     if args.json:
         json.dump(summary, out, indent=2)

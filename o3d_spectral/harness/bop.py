@@ -34,6 +34,15 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral.harness import pose_metrics
+from o3d_spectral.harness.bop_checks import (
+    array,
+    entry_pose,
+    image_id,
+    integer,
+    listed_targets,
+    number,
+    visible_fraction,
+)
 from o3d_spectral.harness.real import orient_outward
 from o3d_spectral.io._files import check_cloud_file
 from o3d_spectral.synthetic.instance import Instance
@@ -113,8 +122,8 @@ def _read_png(path: Path) -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"no such image: {path}")
     image = np.asarray(o3d.io.read_image(str(path)))
-    if image.size == 0:
-        raise ValueError(f"{path}: Open3D read no pixels from it")
+    if image.dtype == object or image.ndim < 2 or image.size == 0:  # an unreadable file
+        raise ValueError(f"{path}: Open3D read no pixels from it (a corrupt PNG?)")
     return image
 
 
@@ -198,18 +207,15 @@ class BopSet:
     def _camera(self, target: _Target) -> tuple[np.ndarray, np.ndarray]:
         """``K`` (3, 3) and the depth image (m) of a target's image."""
         scene = self._scene_dir(target)
-        camera = _scene_file(scene, "scene_camera.json")[str(target.image)]
-        K = np.asarray(camera["cam_K"], dtype=np.float64).reshape(3, 3)
+        K, scale = _camera_entry(scene, str(target.image))
         raw = _read_png(scene / "depth" / f"{target.image:06d}.png").astype(np.float64)
-        return K, raw * float(camera.get("depth_scale", 1.0)) * _MM
+        return K, raw * scale * _MM
 
     def _pose(self, target: _Target) -> np.ndarray:
-        entry = _scene_file(self._scene_dir(target), "scene_gt.json")[str(target.image)]
-        entry = entry[target.annotation]
-        T = np.eye(4)
-        T[:3, :3] = np.asarray(entry["cam_R_m2c"], dtype=np.float64).reshape(3, 3)
-        T[:3, 3] = _MM * np.asarray(entry["cam_t_m2c"], dtype=np.float64).reshape(3)
-        return T
+        scene = self._scene_dir(target)
+        entry = _scene_file(scene, "scene_gt.json")[str(target.image)][target.annotation]
+        where = f"{scene / 'scene_gt.json'}, image {target.image}, annotation {target.annotation}"
+        return entry_pose(entry, where)
 
     def __getitem__(self, index: int) -> Instance:
         """Instance ``index``: the model's points (m, with normals) as the source, the
@@ -307,17 +313,18 @@ def _read_model(surfaces: str, points: str, object_id: int, info_text: str) -> _
     name = f"obj_{object_id:06d}.ply"
     where = f"{Path(surfaces) / 'models_info.json'}, object {object_id}"
     info = json.loads(info_text)
-    if info is None:
-        raise ValueError(f"{where}: no entry")
-    if "diameter" not in info:
-        raise ValueError(f"{where}: no diameter")
+    if not isinstance(info, dict):
+        raise ValueError(f"{where}: no entry (an object with the model's diameter)")
+    diameter = number(info.get("diameter"), where, "diameter")
+    if not diameter > 0:
+        raise ValueError(f"{where}: diameter must be positive, got {diameter}")
     path = Path(surfaces) / name
     mesh = o3d.io.read_triangle_mesh(str(check_cloud_file(path)))
     if len(mesh.triangles) == 0:
         raise ValueError(f"{path}: no triangles (VSD renders the model's surface)")
     mesh.scale(_MM, center=np.zeros(3))
     vertices, normals = _model_points(Path(points) / name)
-    return _Model(vertices, normals, mesh, _MM * float(info["diameter"]),
+    return _Model(vertices, normals, mesh, _MM * diameter,
                   symmetry_of(info, where))
 
 
@@ -329,21 +336,28 @@ def _targets(root: Path, split: str, scenes, objects) -> list[_Target]:
     listed = None
     targets_file = root / "test_targets_bop19.json"
     if split == "test" and targets_file.is_file():
-        listed = {(t["scene_id"], t["im_id"], t["obj_id"])
-                  for t in read_json(targets_file, "BOP 19 test targets")}
+        listed = listed_targets(read_json(targets_file, "BOP 19 test targets"), targets_file)
     chosen = []
     for scene_dir in sorted(p for p in folder.iterdir() if p.is_dir() and p.name.isdigit()):
         scene = int(scene_dir.name)
         if scenes is not None and scene not in scenes:
             continue
         truth = _scene_file(scene_dir, "scene_gt.json")
-        _scene_file(scene_dir, "scene_camera.json")  # present, or an error naming it
         info_path = scene_dir / "scene_gt_info.json"
-        info = _scene_file(scene_dir, "scene_gt_info.json") if info_path.is_file() else {}
-        for image in sorted(truth, key=int):
-            for k, entry in enumerate(truth[image]):
-                object_id = int(entry["obj_id"])
-                visible = info.get(image, [{}] * (k + 1))[k].get("visib_fract")
+        info = _scene_file(scene_dir, "scene_gt_info.json") if info_path.is_file() else None
+        for image in sorted(truth, key=lambda key: image_id(key, scene_dir / "scene_gt.json")):
+            _camera_entry(scene_dir, image)  # present and sound, or an error naming it
+            entries = truth[image]
+            if not isinstance(entries, list):
+                raise ValueError(f"{scene_dir / 'scene_gt.json'}, image {image}: expected a "
+                                 "list of annotations")
+            for k, entry in enumerate(entries):
+                where = f"{scene_dir / 'scene_gt.json'}, image {image}, annotation {k}"
+                if not isinstance(entry, dict):
+                    raise ValueError(f"{where}: expected an object (obj_id, cam_R_m2c, cam_t_m2c)")
+                object_id = integer(entry.get("obj_id"), where, "obj_id")
+                entry_pose(entry, where)
+                visible = None if info is None else visible_fraction(info, image, k, info_path)
                 if objects is not None and object_id not in objects:
                     continue
                 if listed is not None and (scene, int(image), object_id) not in listed:
@@ -352,3 +366,19 @@ def _targets(root: Path, split: str, scenes, objects) -> list[_Target]:
                     continue
                 chosen.append(_Target(scene, int(image), k, object_id, visible))
     return chosen
+
+
+def _camera_entry(scene: Path, image: str) -> tuple[np.ndarray, float]:
+    """``K`` and the depth scale of ``image`` in ``scene_camera.json``, checked."""
+    path = scene / "scene_camera.json"
+    camera = _scene_file(scene, "scene_camera.json").get(image)
+    where = f"{path}, image {image}"
+    if not isinstance(camera, dict):
+        raise ValueError(f"{where}: no entry for the image (cam_K, depth_scale)")
+    K = array(camera.get("cam_K"), (3, 3), where, "cam_K")
+    if abs(np.linalg.det(K)) < 1e-12:
+        raise ValueError(f"{where}: cam_K is singular (not a camera matrix)")
+    scale = number(camera.get("depth_scale", 1.0), where, "depth_scale")
+    if not scale > 0:
+        raise ValueError(f"{where}: depth_scale must be positive, got {scale}")
+    return K, scale

@@ -28,8 +28,9 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral.harness.errors import rotation_error, translation_error
-from o3d_spectral.io._files import check_cloud_file, check_finite
+from o3d_spectral.io._files import atomic_write_text, check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import Instance
+from o3d_spectral.synthetic.manifest import check_pose
 from o3d_spectral.synthetic.symmetry import Symmetry
 
 __all__ = ["MAX_ROTATION_DEG", "MAX_TRANSLATION_M", "PairSet", "pair_scenes", "read_log",
@@ -45,7 +46,12 @@ def read_log(path: Path, size: int = 4) -> dict[tuple[int, int], np.ndarray]:
     a malformed block."""
     if not path.is_file():
         raise FileNotFoundError(f"no {path.name} at {path}")
-    lines = [line.split() for line in path.read_text().splitlines() if line.strip()]
+    _check_inside(path, path.parent)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not a text file (byte {error.start} is not UTF-8)") from None
+    lines = [line.split() for line in text.splitlines() if line.strip()]
     pairs = {}
     for start in range(0, len(lines), size + 1):
         block = lines[start:start + size + 1]
@@ -56,10 +62,23 @@ def read_log(path: Path, size: int = 4) -> dict[tuple[int, int], np.ndarray]:
                 raise ValueError(f"a {matrix.shape} matrix")
         except (IndexError, ValueError) as error:
             raise ValueError(f"{path}, line {start + 1}: not a pair block ({error})") from None
+        where = f"{path}, pair {i} {j} (line {start + 1})"
+        if size == 4:
+            check_pose(where, "transformation", matrix)
+        elif not np.all(np.isfinite(matrix)):
+            raise ValueError(f"{where}: information matrix has NaN or infinite values")
         pairs[(i, j)] = matrix
     if not pairs:
         raise ValueError(f"{path} lists no pairs")
     return pairs
+
+
+def _check_inside(path: Path, folder: Path) -> None:
+    """``ValueError`` when ``path`` is a link leading out of ``folder`` (its content, echoed
+    in an error, would be another file's)."""
+    if not path.resolve().is_relative_to(folder.resolve()):
+        raise ValueError(f"{path} links out of its folder {folder}: copy the file there "
+                         "instead of linking it")
 
 
 def write_log(path: Path, pairs: dict[tuple[int, int], np.ndarray], fragments: int) -> None:
@@ -68,7 +87,7 @@ def write_log(path: Path, pairs: dict[tuple[int, int], np.ndarray], fragments: i
     for (i, j), matrix in sorted(pairs.items()):
         lines.append(f"{i}\t{j}\t{fragments}")
         lines += ["\t".join(f"{v:.10e}" for v in row) for row in np.asarray(matrix)]
-    Path(path).write_text("\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def _truth_dir(scene: Path) -> Path:
@@ -95,6 +114,7 @@ def pair_scenes(root: str | Path) -> list[Path]:
 @cache
 def _fragment(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Points (m) and normals of one fragment, read once per process."""
+    _check_inside(path, path.parent)
     cloud = o3d.io.read_point_cloud(str(check_cloud_file(path)))
     if cloud.is_empty():
         raise ValueError(f"{path}: Open3D read no points from it")
@@ -126,7 +146,9 @@ class PairSet:
         self.keys = sorted(self.pairs)
         for i, j in self.keys:
             for k in (i, j):
-                if not (self.root / f"cloud_bin_{k}.ply").is_file():
+                if (self.root / f"cloud_bin_{k}.ply").is_file():
+                    _check_inside(self.root / f"cloud_bin_{k}.ply", self.root)
+                else:
                     raise FileNotFoundError(f"{truth / 'gt.log'} lists fragment {k}, but "
                                             f"there is no {self.root / f'cloud_bin_{k}.ply'}")
         self.spec = ("pairs", str(self.root.resolve()))

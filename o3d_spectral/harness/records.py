@@ -178,15 +178,10 @@ def _suite_entry(suite: Suite) -> dict:
         "condition": suite.condition,
         "n": len(suite),
         "seed": suite.manifest["seed"],
-        "manifest_sha256": _manifest_hash(suite),
+        # a suite rebuilt in place with the same seed but other instances has another
+        "manifest_sha256": hashlib.sha256(
+            json.dumps(suite.manifest, sort_keys=True, default=str).encode()).hexdigest(),
     }
-
-
-def _manifest_hash(suite: Suite) -> str:
-    """SHA-256 of the suite's parsed manifest (keys sorted): a suite rebuilt in place
-    with the same seed but other instances or options has another."""
-    text = json.dumps(suite.manifest, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def prepare_session(out: Path, suites: list[Suite], settings: dict, methods: list[str]) -> dict:
@@ -201,23 +196,18 @@ def prepare_session(out: Path, suites: list[Suite], settings: dict, methods: lis
             )
     known = {entry["name"]: entry for entry in config.get("suites", [])}
     for suite in suites:
-        entry = known.get(suite_name(suite))
-        if entry and (entry["condition"], entry["seed"]) != (
-            suite.condition,
-            suite.manifest["seed"],
-        ):
+        entry, new = known.get(suite_name(suite)), _suite_entry(suite)
+        if entry and (entry["condition"], entry["seed"]) != (new["condition"], new["seed"]):
             raise ValueError(
                 f"suite {str(suite.root)!r} is {suite.condition} with seed "
                 f"{suite.manifest['seed']}, but out {str(out)!r} holds results of a suite of the "
                 f"same name that is {entry['condition']} with seed {entry['seed']}; choose "
                 "another --out"
             )
-        if entry and entry.get("manifest_sha256", _manifest_hash(suite)) != _manifest_hash(suite):
+        if entry and entry.get("manifest_sha256", new["manifest_sha256"]) != new["manifest_sha256"]:
             raise ValueError(
                 f"suite {str(suite.root)!r} is not the suite out {str(out)!r} holds results "
-                "of: its manifest changed since (the suite was rebuilt in place); choose "
-                "another --out"
-            )
+                "of: its manifest changed (it was rebuilt in place); choose another --out")
     return {**settings, "suites": [_suite_entry(s) for s in suites], "methods": list(methods)}
 
 

@@ -17,7 +17,8 @@ import numpy as np
 from o3d_spectral.io._files import atomic_write_text
 from o3d_spectral.synthetic.instance import CONDITIONS
 
-__all__ = ["atomic_write_text", "check_manifest", "instance_path", "read_manifest"]
+__all__ = ["MAX_TRANSLATION", "atomic_write_text", "check_manifest", "check_pose", "instance_path",
+           "read_manifest"]
 
 #: Top-level keys and the JSON types they must have.
 _TOP = {"format": str, "version": int, "condition": str, "n": int, "seed": int,
@@ -32,18 +33,30 @@ def _kind(value: object, expected: type) -> bool:
     return isinstance(value, expected)
 
 
-def _check_matrix(path: Path, key: str, value: object) -> None:
+#: Largest translation coordinate a pose may have, in its file's units (metres or mm).
+MAX_TRANSLATION = 1e6
+
+
+def check_pose(where: object, key: str, value: object, *, atol: float = 1e-6) -> np.ndarray:
+    """``value`` as a 4x4 rigid transformation (a rotation, a finite translation under
+    :data:`MAX_TRANSLATION`, a last row ``0 0 0 1``), else ``ValueError`` naming ``where``
+    (a file, an entry) and ``key``."""
     try:
         matrix = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"{path}: {key} must be a 4x4 matrix of numbers") from None
+        raise ValueError(f"{where}: {key} must be a 4x4 matrix of numbers") from None
     if matrix.shape != (4, 4) or not np.all(np.isfinite(matrix)):
-        raise ValueError(f"{path}: {key} must be a finite 4x4 matrix, got shape {matrix.shape}")
+        raise ValueError(f"{where}: {key} must be a finite 4x4 matrix, got shape {matrix.shape}"
+                         + ("" if matrix.shape != (4, 4) else " with NaN or infinite values"))
     rotation = matrix[:3, :3]
-    rigid = np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) and np.allclose(
+    rigid = np.allclose(rotation @ rotation.T, np.eye(3), atol=atol) and np.allclose(
         matrix[3], [0.0, 0.0, 0.0, 1.0])
     if not (rigid and np.linalg.det(rotation) > 0):
-        raise ValueError(f"{path}: {key} must be a rigid transformation")
+        raise ValueError(f"{where}: {key} must be a rigid transformation (a rotation, not "
+                         "scaled nor a reflection, and a last row 0 0 0 1)")
+    if np.max(np.abs(matrix[:3, 3])) > MAX_TRANSLATION:
+        raise ValueError(f"{where}: {key} has a translation over {MAX_TRANSLATION:g}")
+    return matrix
 
 
 def _check_name(path: Path, key: str, name: str) -> None:
@@ -84,7 +97,7 @@ def check_manifest(manifest: object, path: Path) -> dict:
         for key in ("source", "target"):
             _check_name(path, f"{where}.{key}", entry[key])
         for key in ("T_gt", "source_from_model"):
-            _check_matrix(path, f"{where}.{key}", entry[key])
+            check_pose(path, f"{where}.{key}", entry[key])
         if not isinstance(entry.get("condition", manifest["condition"]), str):
             raise ValueError(f"{path}: {where}.condition must be a JSON str")
     return manifest
