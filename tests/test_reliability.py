@@ -116,3 +116,26 @@ def test_register_refuses_to_save_onto_its_source(tmp_path, capsys):
                  "--save", str(tmp_path / "." / "s.ply")]) == 2
     assert "--save" in capsys.readouterr().err
     assert source.read_bytes() == before
+
+
+# ---------------------------------------------------------------------- results rows
+
+ROW = {"suite": "full", "index": 0, "method": "spectral", "success": True, "time_s": 0.5,
+       "error": None, "rotation_error_deg": 1.0}
+
+
+@pytest.mark.parametrize(("edit", "match"), [
+    (lambda r: r.pop("success"), "line 2: not a results row: no 'success'"),
+    (lambda r: r.__setitem__("success", "yes"), "line 2: 'success' must be true or false"),
+    (lambda r: r.__setitem__("index", "0"), "line 2: 'index' must be an integer"),
+    (lambda r: r.__setitem__("rotation_error_deg", "small"), "line 2: 'rotation_error_deg'"),
+])
+def test_report_refuses_a_row_missing_a_field_or_of_a_wrong_type(tmp_path, edit, match):
+    from o3d_spectral.harness.report import run_summary
+
+    bad = dict(ROW, index=1)
+    edit(bad)
+    path = tmp_path / "results.jsonl"
+    path.write_text(json.dumps(ROW) + "\n" + json.dumps(bad) + "\n")
+    with pytest.raises(ValueError, match=f"results.jsonl, {match}"):
+        run_summary(path)

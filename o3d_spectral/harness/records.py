@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from o3d_spectral.harness._optional import parse_json, require
+from o3d_spectral.harness.row_checks import check_row
 from o3d_spectral.io._files import atomic_write_text
 
 if TYPE_CHECKING:
@@ -240,10 +241,7 @@ def _rows(file: Path) -> list[dict]:
     for number, line in enumerate(text[: text.rfind("\n") + 1].splitlines(), 1):
         if not line.strip():
             continue
-        row = parse_json(line)
-        if not isinstance(row, dict) or any(key not in row for key in KEY):
-            raise ValueError(f"{file}, line {number}: not a results row; remove that line")
-        rows.append(row)
+        rows.append(check_row(parse_json(line), f"{file}, line {number}"))
     return rows
 
 

@@ -19,7 +19,8 @@ from o3d_spectral.harness.figures import (
     plot_success_vs_angle,
     plot_times,
 )
-from o3d_spectral.harness.records import load_results, read_config
+from o3d_spectral.harness.records import load_results, read_config, result_files
+from o3d_spectral.harness.row_checks import first_without
 from o3d_spectral.harness.selection import TUNING_SPLIT, in_tuning_split
 from o3d_spectral.harness.tables import (
     Table,
@@ -54,6 +55,17 @@ def _with_metric_columns(frame: pd.DataFrame) -> pd.DataFrame:
     return frame.assign(**dict.fromkeys(missing, float("nan"))) if missing else frame
 
 
+def _report_rows(results: Path) -> pd.DataFrame:
+    """The run's rows (:func:`~o3d_spectral.harness.records.load_results`), every one with
+    its ``success`` (``ValueError`` naming the file and line of one without), and the
+    metric columns (:func:`_with_metric_columns`)."""
+    frame = load_results(results)
+    if "success" not in frame or frame["success"].isna().any():
+        where = first_without(result_files(results), "success") or str(results)
+        raise ValueError(f"{where}: not a results row: no 'success'; fix or remove that line")
+    return _with_metric_columns(frame)
+
+
 #: The summary's columns ``eval`` prints when it ends (:func:`run_summary`).
 _RUN_SUMMARY_COLUMNS = ("suite", "method", "n", "success (%)", "median time (s)", "failed")
 
@@ -85,7 +97,7 @@ def run_summary(results: str | Path) -> str:
         A run folder written by :func:`~o3d_spectral.harness.runner.run_eval`, or its
         ``results.jsonl``.
     """
-    table = summary_table(_with_metric_columns(load_results(Path(results))))
+    table = summary_table(_report_rows(Path(results)))
     columns = list(_RUN_SUMMARY_COLUMNS)
     cut = Table(table.name, table.caption, table.frame[columns],
                 {c: table.formats[c] for c in columns})
@@ -228,7 +240,7 @@ def make_report(
         Every file written, by name (e.g. ``"table1.tex"``).
     """
     results = Path(results)
-    frame = _with_metric_columns(load_results(results))
+    frame = _report_rows(results)
     config = _run_config(results)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
