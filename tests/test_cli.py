@@ -148,5 +148,5 @@ def test_register_init_and_voxel_size_errors_name_the_option_and_file(tmp_path, 
     assert main(args) == 1
     err = capsys.readouterr().err
     assert f"--init {path}" in err and "rigid" in err and len(err.splitlines()) == 1
-    assert main([*args[:3], "--voxel-size", "nan"]) == 1
+    assert main([*args[:3], "--voxel-size", "nan"]) == 2  # a usage error
     assert "--voxel-size" in capsys.readouterr().err

@@ -139,3 +139,50 @@ def test_report_refuses_a_row_missing_a_field_or_of_a_wrong_type(tmp_path, edit,
     path.write_text(json.dumps(ROW) + "\n" + json.dumps(bad) + "\n")
     with pytest.raises(ValueError, match=f"results.jsonl, {match}"):
         run_summary(path)
+
+
+# ---------------------------------------------------------------------- CLI failures
+
+
+def _cli(*args, stdout=None):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "o3d_spectral.cli", *args], stdout=stdout,
+                          stderr=subprocess.PIPE, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def box_ply(tmp_path_factory):
+    import open3d as o3d
+
+    path = tmp_path_factory.mktemp("clouds") / "box.ply"
+    cloud = o3d.geometry.TriangleMesh.create_box(0.1, 0.2, 0.3).sample_points_uniformly(2000)
+    o3d.io.write_point_cloud(str(path), cloud)
+    return path
+
+
+def test_results_to_a_full_disk_fail_in_one_line(box_ply):
+    with open("/dev/full", "w") as full:
+        done = _cli("register", str(box_ply), str(box_ply), "--voxel-size", "0.02", "--json",
+                    stdout=full)
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == [
+        "o3d-spectral register: error: could not write the results to the standard output "
+        "(No space left on device)"]
+
+
+def test_a_bad_voxel_size_is_a_usage_error(box_ply):
+    done = _cli("register", str(box_ply), str(box_ply), "--voxel-size", "-1")
+    assert done.returncode == 2 and "--voxel-size" in done.stderr
+
+
+def test_ctrl_c_is_one_line_and_status_130(box_ply, monkeypatch, capsys):
+    from o3d_spectral.cli import main, register
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(register, "run", interrupted)
+    assert main(["register", str(box_ply), str(box_ply), "--voxel-size", "0.02"]) == 130
+    assert capsys.readouterr().err.strip() == "o3d-spectral register: interrupted"

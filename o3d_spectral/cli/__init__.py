@@ -161,6 +161,15 @@ def _fail(args: argparse.Namespace, error: Exception, code: int) -> int:
     return code
 
 
+def _flush_results() -> None:
+    """Flush the results (a full disk fails here, named, not at exit in a traceback)."""
+    try:
+        results().flush()
+    except OSError as error:
+        raise OSError(f"could not write the results to the standard output "
+                      f"({error.strerror or error})") from None
+
+
 def status_label(args: argparse.Namespace) -> str | None:
     """The status line's label for a command that wants one (``status`` default set by
     the command), on a terminal, without ``-q``; else None."""
@@ -182,8 +191,12 @@ def main(argv: list[str] | None = None) -> int:
         start = time.perf_counter()
         try:
             code = int(args.func(args) or 0)
+            _flush_results()
         except UsageError as error:
             return _fail(args, error, 2)
+        except KeyboardInterrupt:
+            print(f"o3d-spectral {args.command}: interrupted", file=sys.stderr)
+            return 130
         except Exception as error:
             return _fail(args, error, 1)
         log.info("%s done in %.1f s", args.command, time.perf_counter() - start)

@@ -136,8 +136,9 @@ def stdout_for_results_only() -> Iterator[None]:
     finally:
         lines.drain()
         _flush_c_stdout()
-        if wrapper is not None:
-            wrapper.close()  # flushed; the descriptor stays open (closefd=False)
+        if wrapper is not None:  # flushed; the descriptor stays open (closefd=False)
+            with contextlib.suppress(OSError):  # a full disk: main reported it already
+                wrapper.close()
         if real is not None:
             os.dup2(real, 1)
             os.close(real)

@@ -273,11 +273,14 @@ def run(args: argparse.Namespace) -> int:
 
     import o3d_spectral
     from o3d_spectral._checks import check_voxel_size
-    from o3d_spectral.cli import results
+    from o3d_spectral.cli import UsageError, results
 
     auto = args.voxel_size == "auto"
     if not auto:
-        check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
+        try:
+            check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
+        except ValueError as error:
+            raise UsageError(str(error)) from None
     if args.save:
         _check_save(args.save, tuple(p for p in (args.source, args.target, args.init) if p))
     init = _read_init(args.init) if args.init else None
