@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from o3d_spectral.cli import main
-from o3d_spectral.io._files import atomic_write_text, check_cloud_file
+from o3d_spectral.io.files import atomic_write_text, check_cloud_file
 from o3d_spectral.synthetic.suite import MANIFEST, load_suite, make_suite
 from tests.conftest import sample_model
 
@@ -377,7 +377,7 @@ def test_corrupt_session_files_are_named(tmp_path):
 def test_files_are_created_with_the_callers_umask(tmp_path):
     import os
 
-    from o3d_spectral.io._files import atomic_write_text
+    from o3d_spectral.io.files import atomic_write_text
 
     saved = os.umask(0o027)
     try:

@@ -58,7 +58,7 @@ def test_a_cloud_cut_short_by_a_full_disk_is_refused_and_the_old_file_kept(tmp_p
     """Open3D's writer reports success on a full disk: the file written is checked."""
     import open3d as o3d
 
-    from o3d_spectral.io._files import atomic_write_cloud
+    from o3d_spectral.io.files import atomic_write_cloud
 
     path = tmp_path / f"moved{suffix}"
     path.write_bytes(b"old")

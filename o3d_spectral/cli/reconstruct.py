@@ -76,7 +76,7 @@ def _read(path: Path):
     when there are none."""
     import open3d as o3d
 
-    from o3d_spectral.io._files import check_cloud_file
+    from o3d_spectral.io.files import check_cloud_file
 
     check_cloud_file(path)
     cloud = o3d.io.read_point_cloud(str(path))

@@ -123,7 +123,7 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
     naming the file."""
     import open3d as o3d
 
-    from o3d_spectral.io._files import check_cloud_file, check_finite
+    from o3d_spectral.io.files import check_cloud_file, check_finite
 
     check_cloud_file(path)
     with _open3d_failures() as failures:
@@ -205,7 +205,7 @@ def _save(path: Path, cloud) -> None:
     """Write ``--save``'s cloud whole, or not at all (``OSError`` naming it)."""
     import open3d as o3d
 
-    from o3d_spectral.io._files import atomic_write_cloud
+    from o3d_spectral.io.files import atomic_write_cloud
 
     try:
         atomic_write_cloud(path, len(cloud.points),

@@ -44,7 +44,7 @@ from o3d_spectral.harness.bop_checks import (
     visible_fraction,
 )
 from o3d_spectral.harness.real import orient_outward
-from o3d_spectral.io._files import check_cloud_file
+from o3d_spectral.io.files import check_cloud_file
 from o3d_spectral.synthetic.instance import Instance
 from o3d_spectral.synthetic.symmetry import Symmetry
 

@@ -28,7 +28,7 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral.harness.errors import rotation_error, translation_error
-from o3d_spectral.io._files import atomic_write_text, check_cloud_file, check_finite
+from o3d_spectral.io.files import atomic_write_text, check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import Instance
 from o3d_spectral.synthetic.manifest import check_pose
 from o3d_spectral.synthetic.symmetry import Symmetry

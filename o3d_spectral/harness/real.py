@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 
 from o3d_spectral._bundled import bundled_folder
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
-from o3d_spectral.io._files import atomic_write_cloud
+from o3d_spectral.io.files import atomic_write_cloud
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.symmetry import Symmetry, surface_symmetry
 

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING
 
 from o3d_spectral.harness._optional import parse_json, require
 from o3d_spectral.harness.row_checks import check_row
-from o3d_spectral.io._files import atomic_write_text
+from o3d_spectral.io.files import atomic_write_text
 
 if TYPE_CHECKING:
     from o3d_spectral.synthetic.suite import Suite

@@ -7,7 +7,7 @@
   to back on walls thinner than the points' spacing);
 * :mod:`~o3d_spectral.io.normals`: orientation rules, a single view recognised from its
   normals and depth;
-* :mod:`~o3d_spectral.io._files`: cloud files checked against their header before Open3D
+* :mod:`~o3d_spectral.io.files`: cloud files checked against their header before Open3D
   reads them.
 
 Imports only its own modules and the package's private helpers (``tests/test_layers.py``).

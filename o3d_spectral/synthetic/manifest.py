@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from o3d_spectral.io._files import atomic_write_text
+from o3d_spectral.io.files import atomic_write_text
 from o3d_spectral.synthetic.instance import CONDITIONS
 
 __all__ = ["MAX_TRANSLATION", "atomic_write_text", "check_manifest", "check_pose", "instance_path",

@@ -19,7 +19,7 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral import _extras
-from o3d_spectral.io._files import atomic_write_cloud, check_cloud_file, check_finite
+from o3d_spectral.io.files import atomic_write_cloud, check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
 from o3d_spectral.synthetic.models import model_names
