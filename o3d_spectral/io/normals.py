@@ -41,6 +41,12 @@ VIEW_MEAN = 0.4
 DISTANT_SENSOR = 1000.0
 #: :func:`is_depth_map_along`: depth gap (voxels) and share of rays allowed to exceed it.
 ALONG_GAP, ALONG_SHARE = 1.5, 0.05
+#: :func:`is_depth_map`: rays binned this many voxels wide (at the median depth); a depth
+#: map when under DEPTH_SHARE of the bins hold depths over DEPTH_GAP voxels apart.
+DEPTH_BIN, DEPTH_GAP, DEPTH_SHARE = 0.5, 3.0, 0.1
+#: :func:`sensor_direction`: candidates within AROUND_ANGLE (deg) of ``around``, ties within
+#: SPREAD_TIE of the fewest second surfaces; :func:`orient`: OFF_AXIS_ANGLE (deg) off-axis.
+AROUND_ANGLE, SPREAD_TIE, OFF_AXIS_ANGLE = 60.0, 0.005, 45.0
 
 
 def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> bool:
@@ -63,13 +69,13 @@ def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> 
     rays = np.asarray(points, dtype=np.float64) - np.asarray(viewpoint, dtype=np.float64)
     depth = np.linalg.norm(rays, axis=1)
     rays, depth = rays[depth > 0], depth[depth > 0]
-    step = 0.5 * voxel_size / np.median(depth)  # bin width, radians
+    step = DEPTH_BIN * voxel_size / np.median(depth)  # bin width, radians
     theta = np.arccos(np.clip(rays[:, 2] / depth, -1.0, 1.0))
     phi = np.arctan2(rays[:, 1], rays[:, 0]) + np.pi
     row = np.floor(theta / step).astype(np.int64)
     per_row = np.maximum(np.floor(2 * np.pi * np.sin((row + 0.5) * step) / step), 1.0)
     key = row * (2 * int(np.ceil(2 * np.pi / step)) + 2) + np.floor(phi / (2 * np.pi) * per_row)
-    return bool(_behind_share(key[None], depth[None], 3.0 * voxel_size)[0] < 0.1)
+    return bool(_behind_share(key[None], depth[None], DEPTH_GAP * voxel_size)[0] < DEPTH_SHARE)
 
 
 def is_depth_map_along(points: ArrayLike, direction: ArrayLike, voxel_size: float) -> bool:
@@ -118,7 +124,7 @@ def sensor_direction(
     candidates = _DIRECTIONS
     if around is not None:
         candidates = candidates * np.where(candidates @ around < 0.0, -1.0, 1.0)[:, None]
-        candidates = candidates[candidates @ around >= np.cos(np.deg2rad(60.0))]
+        candidates = candidates[candidates @ around >= np.cos(np.deg2rad(AROUND_ANGLE))]
     best = _best_direction(p, n, candidates, voxel_size)
     if best is None:
         return None
@@ -135,7 +141,7 @@ def _best_direction(
     spreads = _surfaces_behind(points, candidates, voxel_size)
     if len(spreads) == 0 or spreads.min() >= ALONG_SHARE:
         return None
-    kept = candidates[spreads <= spreads.min() + 0.005]
+    kept = candidates[spreads <= spreads.min() + SPREAD_TIE]
     squareness = np.percentile(np.abs(normals @ kept.T), 2, axis=0)
     return kept[int(np.argmax(squareness))]
 
@@ -245,7 +251,7 @@ def orient(
         toward = _turned_to_face(normals, origin - points)  # a scan in its sensor's frame,
         split = sign_disagreement(points, toward) > SIGN_DISAGREEMENT  # unless that splits
         ray = origin - points.mean(axis=0)  # it or the origin is off the view's axis
-        off_axis = np.cos(np.deg2rad(45.0)) * np.linalg.norm(ray)
+        off_axis = np.cos(np.deg2rad(OFF_AXIS_ANGLE)) * np.linalg.norm(ray)
         aside = axis is not None and abs(ray @ axis) < off_axis
         if not (split or aside):
             return toward, "sensor frame"
