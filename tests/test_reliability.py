@@ -186,3 +186,15 @@ def test_ctrl_c_is_one_line_and_status_130(box_ply, monkeypatch, capsys):
     monkeypatch.setattr(register, "run", interrupted)
     assert main(["register", str(box_ply), str(box_ply), "--voxel-size", "0.02"]) == 130
     assert capsys.readouterr().err.strip() == "o3d-spectral register: interrupted"
+
+
+@pytest.mark.parametrize("command", [["make-suite", "full", "--out", "{tmp}/s"],
+                                     ["eval", "--suite", "{tmp}/s", "--out", "{tmp}/r"],
+                                     ["demo", "--out", "{tmp}/d"], ["servo", "--out", "{tmp}/v"]])
+@pytest.mark.parametrize("value", ["-1", "x"])
+def test_a_bad_seed_is_a_usage_error_naming_seed(command, value, tmp_path, capsys):
+    from o3d_spectral.cli import main
+
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in command] + ["--seed", value]
+    assert main(argv) == 2
+    assert "argument --seed: expected a non-negative integer" in capsys.readouterr().err

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .arguments import seed
+
 log = logging.getLogger(__name__)
 
 
@@ -43,7 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="bundled model: " + (", ".join(names) if names else "none found (see "
                                   "O3D_SPECTRAL_DATA)"),
     )
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=seed, default=0,
                         help="seed of the random rotation, offset, view and noise")
     parser.add_argument("--max-angle", type=float, default=30.0,
                         help="largest initial rotation, degrees (the law is local)")

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .arguments import seed
+
 EXAMPLES = (
     "examples:\n"
     "  o3d-spectral eval --suite suites/full suites/partial --workers 2 --out results/run\n"
@@ -68,7 +70,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="voxel edge shared by all methods, metres (default 0.008, the paper's)",
     )
     _add_executor_and_selection_arguments(parser)
-    parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="run seed (default 0)")
     _add_success_and_plugin_arguments(parser)
     parser.add_argument("--quiet", dest="errors_only", action="store_true",
                         default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # as -q, once its own

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .arguments import seed
+
 SUCCESS_TRANSLATION = 0.005  # m
 SUCCESS_ROTATION = np.deg2rad(1.0)
 
@@ -27,7 +29,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "          o3d-spectral servo --seed 0 --trials 30 --out out/servo30",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first trial")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the first trial")
     parser.add_argument("--out", type=Path, default=Path("out/servo"), help="output folder")
     parser.add_argument("--trials", type=int, default=1,
                         help="number of random starts (seeds SEED, SEED+1, ...)")

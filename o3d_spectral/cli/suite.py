@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from .arguments import seed
+
 # As o3d_spectral.synthetic.scenes.CONDITIONS, written out so that --help stays light.
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 
@@ -26,7 +28,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     make.add_argument("condition", choices=CONDITIONS, help="scene condition")
     make.add_argument("--n", type=int, default=240, help="instances (default 240: 20 per object)")
-    make.add_argument("--seed", type=int, default=0, help="suite seed (default 0)")
+    make.add_argument("--seed", type=seed, default=0, help="suite seed (default 0)")
     make.add_argument("--out", required=True, metavar="DIR", help="output folder")
     make.add_argument(
         "--angle-range",
