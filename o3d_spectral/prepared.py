@@ -27,7 +27,17 @@ from .io.cloud import prepare as prepare_arrays
 from .io.rows import largest_side
 from .options import CloudOption, SpectralRegistrationOption
 
-__all__ = ["PreparedSource", "prepare", "prepared_cloud"]
+__all__ = ["PreparedSource", "prepare", "prepared_cloud", "check_prepared_with"]
+
+
+def check_prepared_with(argument: str, prepared: object, asked: dict[str, object]) -> None:
+    """``ValueError`` naming ``argument`` when a setting a call ``asked`` for (name ->
+    value) differs from the attribute of that name ``prepared`` was made with."""
+    for name, value in asked.items():
+        if getattr(prepared, name) != value:
+            raise ValueError(
+                f"{argument} was prepared with {name}={getattr(prepared, name)!r}, the call "
+                f"asks for {value!r}: prepare it with the call's settings")
 
 
 def prepared_cloud(
@@ -97,11 +107,7 @@ class PreparedSource:
         asked = {"voxel_size": float(voxel_size), "egi_voxel_size": option.egi_voxel_size,
                  "normal_radius": cloud.normal_radius,
                  "camera_location": cloud.source_camera}
-        for name, value in asked.items():
-            if getattr(self, name) != value:
-                raise ValueError(
-                    f"source was prepared with {name}={getattr(self, name)!r}, the call asks "
-                    f"for {value!r}: prepare it with the call's settings")
+        check_prepared_with("source", self, asked)
 
     def moved(self, offset: NDArray[np.float64]) -> PreparedCloud:
         """The prepared cloud with its points moved by ``-offset`` (metres; the frame a

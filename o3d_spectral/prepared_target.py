@@ -23,6 +23,7 @@ from . import centring
 from ._checks import check_instance, check_voxel_size
 from .io.cloud import CloudArrays, as_arrays
 from .options import CloudOption, SpectralRegistrationOption
+from .prepared import check_prepared_with
 from .stepper import SpectralStepper
 
 __all__ = ["PreparedTarget", "prepare_target"]
@@ -68,11 +69,7 @@ class PreparedTarget:
         asked = {"voxel_size": float(voxel_size),
                  "option": option or SpectralRegistrationOption(),
                  "cloud": cloud or CloudOption()}
-        for name, value in asked.items():
-            if getattr(self, name) != value:
-                raise ValueError(
-                    f"target was prepared with {name}={getattr(self, name)!r}, the call asks "
-                    f"for {value!r}: prepare it with the call's settings")
+        check_prepared_with("target", self, asked)
 
 
 def prepare_target(
