@@ -22,7 +22,8 @@ from .parallel import one_open3d_thread
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
     "polish_within_reach", "convergence", "REACH",
-    "representatives", "SCORE_CELL", "DENSE_PER_VOXEL", "with_normals",
+    "representatives", "SCORE_CELL", "DENSE_PER_VOXEL", "with_normals", "first_per_cell",
+    "thinned",
 ]
 
 #: The polished pose is rejected when it keeps at most this share of the unpolished
@@ -63,7 +64,14 @@ def representatives(
     """
     if len(points) <= DENSE_PER_VOXEL * voxels:
         return np.arange(len(points))
-    cell = SCORE_CELL * voxel_size
+    return first_per_cell(points, SCORE_CELL * voxel_size)
+
+
+def first_per_cell(points: NDArray[np.float64], cell: float) -> NDArray[np.int64]:
+    """Indices (ascending) of the first of the points (N, 3) in each cube of ``cell``
+    metres: actual points, so that indices into the subset map back to the cloud."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=np.int64)
     keys = np.floor((points - bounds(points)[0]) / cell).astype(np.int64)
     span = bounds(keys)[1] + 1
     if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one int64 per cell
@@ -72,6 +80,13 @@ def representatives(
     else:  # a cloud over ~4e6 cells a side: rows
         first = np.unique(keys, axis=0, return_index=True)[1]
     return np.sort(first)
+
+
+def thinned(cloud: o3d.geometry.PointCloud, cell: float) -> o3d.geometry.PointCloud:
+    """``cloud`` (normals kept) with its first point in each cube of ``cell`` metres
+    (:func:`first_per_cell`); ``cloud`` itself where no two points share a cell."""
+    keep = first_per_cell(np.asarray(cloud.points), cell)
+    return cloud if len(keep) == len(cloud.points) else cloud.select_by_index(keep)
 
 
 def near_pose(

@@ -37,12 +37,12 @@ from numpy.typing import NDArray
 from ..io.cloud import CloudArrays, to_legacy
 from ..law import Climb, climb
 from ..options import GlobalSearchOption
-from ..refinement import with_normals
+from ..refinement import thinned, with_normals
 from ..stepper import MovingCloud, SpectralStepper
 from .ascent import best_ascent
 from .candidates import Candidate, egi_candidates, shell_candidates, swept_candidates
 from .climbs import FOCUS_MARGIN, climbed
-from .confirmation import Confirmation, Fit, closer, confirm, fit
+from .confirmation import FIXED_CELL, Confirmation, Fit, closer, confirm, fit
 from .placement import Hypothesis, Placements, best_first, place, places
 from .poses import distinct
 from .situation import Situation
@@ -120,10 +120,12 @@ class GlobalSearch:
 
     @cached_property
     def fixed(self) -> o3d.geometry.PointCloud:
-        """The fixed cloud with normals (estimated ones where it had none), for the
+        """The fixed cloud with normals (estimated ones where it had none), one point per
+        cell of :data:`~o3d_spectral.search.confirmation.FIXED_CELL` voxels, for the
         confirmation's polish."""
-        return with_normals(to_legacy(self.target), self.stepper.target_normal_points,
-                            self.stepper.target_normals)
+        fixed = with_normals(to_legacy(self.target), self.stepper.target_normal_points,
+                             self.stepper.target_normals)
+        return thinned(fixed, FIXED_CELL * self.stepper.voxel_size)
 
     def rank(self, *, sweep: bool = False) -> Ranking:
         """The candidates placed and (in a scene) focused, best placed first."""
