@@ -98,7 +98,9 @@ def best_ascent(
     """:func:`peak_ascent` from the most promising of several poses (4, 4): each is first
     ascended on a coarse grid (:data:`PRESELECT_SPAN`, :data:`PRESELECT_STEPS`; the poses
     side by side on ``workers`` threads), and the one that peaks highest there is ascended
-    in full.
+    on with the finer steps of :data:`ASCENT_STEPS` only, coarse to fine (its large turns
+    are the preselection's: on the dragon and turntable pairs the same poses to 0.07
+    degree, the ascent 13% shorter). A single pose is ascended with every step.
 
     Between two scans the law's climbs end 5-20 degrees from where the shapes agree best,
     and the climb that ends best-scored is not always the one nearest the truth: on dragon
@@ -106,12 +108,12 @@ def best_ascent(
     off with a peak of 0.114, while another, 17 degrees off at 0.101, ascended to 5.5
     degrees and 0.19.
     """
-    start = poses[0]
-    if len(poses) > 1:
-        coarse = thread_map(
-            lambda pose: peak_ascent(stepper, moving, pose, PRESELECT_STEPS, PRESELECT_SPAN),
-            poses, workers,
-        )
-        best = max(coarse, key=lambda h: h.translation_peak)  # the first of equals
-        start = best.transformation(moving.centroid)
-    return peak_ascent(stepper, moving, start)
+    if len(poses) == 1:
+        return peak_ascent(stepper, moving, poses[0])
+    coarse = thread_map(
+        lambda pose: peak_ascent(stepper, moving, pose, PRESELECT_STEPS, PRESELECT_SPAN),
+        poses, workers,
+    )
+    best = max(coarse, key=lambda h: h.translation_peak)  # the first of equals
+    return peak_ascent(stepper, moving, best.transformation(moving.centroid),
+                       ASCENT_STEPS[len(PRESELECT_STEPS):])
