@@ -19,12 +19,13 @@ The hypotheses of the global search that end over
 distinct (:func:`o3d_spectral.search.poses.distinct`) are measured the same way where they
 ended (the climbs' best iterates; the confirmation's rivals after its short ICP), and the
 best of them is the *rival fit*. Both are reported in the result (``fit``, ``rival_fit``), and
-the low-fit warning (:func:`o3d_spectral.diagnostics.low_fit`) is based on them.
+the fit is one of the calibrated confidence's inputs (:mod:`o3d_spectral.pose_evidence`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
@@ -35,12 +36,32 @@ from .io.cloud import MIN_POINTS
 from .refinement import near_pose
 from .search.confirmation import fit
 from .search.poses import distinct
+from .spectra import so3
 from .stepper import MovingCloud, SpectralStepper
 
-__all__ = ["verify", "RIVALS"]
+__all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns", "RIVALS",
+           "AMBIGUITY_MARGIN", "AMBIGUITY_MIN_FIT", "TURN_ANGLES", "TURN_POLISH",
+           "TURN_REACH", "ASYMMETRIC"]
 
 #: Hypotheses measured at most, besides the returned pose.
 RIVALS = 4
+#: A distinct pose whose fit is at least the returned pose's less this makes the pose
+#: ambiguous (a fit counts points within one voxel: 0.02 is one point in fifty).
+AMBIGUITY_MARGIN = 0.02
+#: A pose that fits less than this is not called ambiguous (a wrong pose is not made
+#: more or less right by a rival that fits as poorly).
+AMBIGUITY_MIN_FIT = 0.5
+#: The turns of the returned pose tried as rivals, degrees about each principal axis
+#: (a box, a can or a bottle maps onto itself, or nearly, by some of them).
+TURN_ANGLES = (90.0, 180.0, -90.0)
+#: The best turn, fitting within this of the pose before any polish, is polished.
+TURN_POLISH = 0.3
+#: The turns are measured on the fixed points within this many voxels of the ball of
+#: the posed moving points (the short ICP's 2 voxels, and 2 of drift).
+TURN_REACH = 4.0
+#: A rival whose turn from the returned pose moves the source's points this far (median,
+#: voxels) from its own surface or more is a different pose, not a symmetry.
+ASYMMETRIC = 0.15
 
 
 def verify(
@@ -73,13 +94,44 @@ def verify(
         The fit of ``pose``, and the best fit of a hypothesis that turns the cloud over
         ``DISTINCT_ANGLE`` from ``pose`` (0 when there is none), each in [0, 1].
     """
+    measured = measure(stepper, moving, fixed, pose, others, culls=culls)
+    return measured.fit, measured.rival_fit
+
+
+@dataclass(frozen=True)
+class Verification:
+    """A pose's fit and its best distinct rival's (:func:`measure`).
+
+    Attributes
+    ----------
+    fit : float
+        The pose's fit, [0, 1].
+    rival_fit : float
+        The best fit of a distinct hypothesis, [0, 1] (0 when none).
+    rival : ndarray, shape (4, 4), or None
+        That hypothesis (moving cloud to fixed cloud); None when none.
+    """
+
+    fit: float
+    rival_fit: float = 0.0
+    rival: NDArray[np.float64] | None = None
+
+
+def measure(
+    stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
+    pose: NDArray[np.float64], others: Sequence[NDArray[np.float64]] = (), *,
+    culls: bool,
+) -> Verification:
+    """:func:`verify`, with the best rival's pose."""
     share = fit(stepper, moving, fixed, pose, polish=False).share
-    rival = 0.0
+    best = Verification(_facing_share(stepper, moving, fixed, pose, share, culls))
     for other in list(others)[:RIVALS]:  # measured where they are: distinct ones only
         if distinct(other, pose):
             other_share = fit(stepper, moving, fixed, other, polish=False).share
-            rival = max(rival, _facing_share(stepper, moving, fixed, other, other_share, culls))
-    return _facing_share(stepper, moving, fixed, pose, share, culls), rival
+            other_share = _facing_share(stepper, moving, fixed, other, other_share, culls)
+            if best.rival is None or other_share > best.rival_fit:
+                best = Verification(best.fit, other_share, other)
+    return best
 
 
 def _facing_share(
@@ -104,3 +156,131 @@ def _facing_share(
     distances, _ = cKDTree(np.asarray(near.points)).query(
         points, distance_upper_bound=stepper.voxel_size)
     return float(np.mean(np.isfinite(distances)))
+
+
+@dataclass(frozen=True)
+class Ambiguity:
+    """The best distinct pose found besides the returned one.
+
+    Attributes
+    ----------
+    fit : float
+        Its fit, [0, 1] (0 when none was found).
+    angle : float
+        The rotation between it and the returned pose, degrees (0 when none).
+    ambiguous : bool
+        It fits as well as the returned pose (within :data:`AMBIGUITY_MARGIN`), which
+        fits at least :data:`AMBIGUITY_MIN_FIT`.
+    self_match : float
+        How far the turn from the returned pose to it maps the source onto itself: the
+        median distance of the turned source points to the tangent plane of their
+        nearest source point, in voxels (0 for an exact symmetry; :data:`ASYMMETRIC`
+        and over: two poses that differ, which the target cannot tell apart); inf when
+        none was found.
+    """
+
+    fit: float = 0.0
+    angle: float = 0.0
+    ambiguous: bool = False
+    self_match: float = float("inf")
+
+    @property
+    def symmetric(self) -> bool:
+        """The rival is the returned pose turned by a symmetry of the source (within
+        :data:`ASYMMETRIC`): both poses are equally right."""
+        return self.self_match < ASYMMETRIC
+
+
+def ambiguity(
+    stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
+    pose: NDArray[np.float64], measured: Verification, *, culls: bool,
+) -> Ambiguity:
+    """The best distinct pose among the measured rival and the turns of ``pose``.
+
+    Parameters
+    ----------
+    stepper, moving, fixed, culls
+        As for :func:`verify`.
+    pose : ndarray, shape (4, 4)
+        The returned pose (moving cloud to fixed cloud).
+    measured : Verification
+        ``pose``'s :func:`measure` (its fit, and the search's best distinct hypothesis).
+
+    Returns
+    -------
+    Ambiguity
+
+    Notes
+    -----
+    The turns (:func:`turns`: a quarter and a half turn about each of the source's
+    principal axes) are measured where they are, on the fixed cloud's points near the
+    pose; the best is polished by the short ICP
+    (:func:`o3d_spectral.search.confirmation.fit`) when it fits within
+    :data:`TURN_POLISH` of the pose (a near-symmetric object lands a voxel or two off
+    its other side), so the cost is a few distance queries and at most one polish.
+    """
+    best_fit, best = measured.rival_fit, measured.rival
+    # a turn about the points' centroid keeps them in their ball: the fixed points
+    # within reach of a polish (and its drift) of that ball are all a fit can use
+    near, _ = near_pose(fixed, moving.points, pose, TURN_REACH * stepper.voxel_size)
+    tree = cKDTree(np.asarray(near.points)) if len(near.points) else None
+    shares = [(_share(stepper, moving, tree, turn), turn) for turn in turns(moving, pose)]
+    share, turn = max(shares, key=lambda measured_turn: measured_turn[0])
+    if share >= measured.fit - TURN_POLISH:
+        polished = fit(stepper, moving, near, turn)
+        if distinct(polished.pose, pose):
+            share, turn = polished.share, polished.pose
+    if distinct(turn, pose):
+        share = _facing_share(stepper, moving, near, turn, share, culls)
+        if best is None or share > best_fit:
+            best_fit, best = share, turn
+    if best is None:
+        return Ambiguity()
+    angle = float(np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ best[:3, :3])))
+    ambiguous = measured.fit >= AMBIGUITY_MIN_FIT and best_fit >= measured.fit - AMBIGUITY_MARGIN
+    return Ambiguity(best_fit, angle, ambiguous,
+                     _self_match(moving, np.linalg.inv(pose) @ best, stepper.voxel_size))
+
+
+def _self_match(moving: MovingCloud, motion: NDArray[np.float64], voxel_size: float) -> float:
+    """Median distance (voxels) of the moving points moved by ``motion`` (4, 4) to the
+    tangent plane of their nearest moving point (those with a normal)."""
+    has_normal = np.einsum("ij,ij->i", moving.point_normals, moving.point_normals) > 0.5
+    points, normals = moving.points[has_normal], moving.point_normals[has_normal]
+    if len(points) < MIN_POINTS:
+        return float("inf")
+    moved = points @ motion[:3, :3].T + motion[:3, 3]
+    _, nearest = cKDTree(points).query(moved)
+    offsets = np.abs(np.einsum("ij,ij->i", moved - points[nearest], normals[nearest]))
+    return float(np.median(offsets)) / voxel_size
+
+
+def _share(
+    stepper: SpectralStepper, moving: MovingCloud, tree: cKDTree | None,
+    pose: NDArray[np.float64],
+) -> float:
+    """:func:`o3d_spectral.search.confirmation.fit`'s share at ``pose`` (4, 4) with no
+    polish, on a KD-tree of the fixed points near it (None: none)."""
+    if tree is None:
+        return 0.0
+    R, t = pose[:3, :3], pose[:3, 3]
+    _, mask, _ = stepper.visible(moving, R, R @ moving.centroid + t - moving.centroid)
+    points = moving.points if mask is None else moving.points[mask]
+    distances, _ = tree.query(points @ R.T + t, distance_upper_bound=stepper.voxel_size)
+    return float(np.mean(np.isfinite(distances)))
+
+
+def turns(moving: MovingCloud, pose: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """``pose`` (4, 4) turned a quarter turn each way and half a turn about each
+    principal axis of the moving cloud's points through their centroid (before
+    ``pose``): nine poses (4, 4)."""
+    centre = moving.points.mean(axis=0)
+    _, axes = np.linalg.eigh(np.cov((moving.points - centre).T))
+    out = []
+    for axis in axes.T:
+        for angle in TURN_ANGLES:
+            turn = np.eye(4)
+            turn[:3, :3] = so3.exp(np.deg2rad(angle) * axis)
+            turn[:3, 3] = centre - turn[:3, :3] @ centre
+            out.append(pose @ turn)
+    return out

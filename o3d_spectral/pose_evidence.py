@@ -1,0 +1,209 @@
+"""What a pose's fit to the target says about whether it is right: the confidence's inputs.
+
+A registration's final pose is measured once, at the end of the call
+(:func:`o3d_spectral.run.finish`), on the clouds as the method holds them (one point per
+voxel of the source, the target's down-sampled points near the pose), so the cost is a
+few distance queries on one KD-tree:
+
+- the *fit* (:mod:`o3d_spectral.verification`): the share of the source points the
+  target could show lying within a voxel of it;
+- the *target fit*: the share of the target's points inside the ball of the posed source
+  that lie within a voxel of the source (a wrong object leaves much of the target
+  unexplained; a crop of a right object leaves none);
+- the *plane distance*: the median distance of the source inliers to the tangent plane
+  of their nearest target point, in voxels (a right pose lies on the surface, a wrong
+  one that happens to be near it crosses it);
+- the *normal agreement*: the share of inliers whose normal is within
+  :data:`NORMAL_AGREEMENT_ANGLE` of their target point's;
+- the *free-space violation*, only where the target is a single view whose sensor was
+  located: the share of the source points facing that sensor (squarely, not at grazing
+  rays) that lie in front of what the sensor saw along their ray (the sensor saw through
+  them: the pose cannot be right).
+  Where the sensor is unknown (a whole model, a crop, a two-sided cloud) it is None: a
+  guessed sensor on a crop sees "through" the cut and makes false hits.
+
+:mod:`o3d_spectral.confidence_model` turns these into a probability.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from .io.cloud import MIN_POINTS
+
+__all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
+           "RAY_RADIUS", "RAY_NEIGHBOURS",
+           "MIN_INCIDENCE"]
+
+#: Normals closer than this (degrees, either sign) agree.
+NORMAL_AGREEMENT_ANGLE = 30.0
+#: A source point violates the free space when the nearest target point on its ray lies
+#: more than this many voxels behind it (the sensor saw through it).
+FREE_SPACE_DEPTH = 2.0
+#: Half-width of a ray, in voxels at the source point's range: target points within it
+#: are on the ray.
+RAY_RADIUS = 0.5
+#: The free-space test counts the source points whose normal makes a cosine over this
+#: with their ray to the sensor: at grazing rays a depth sensor returns no point on the
+#: surface, and a right pose's silhouette would seem seen through.
+MIN_INCIDENCE = 0.2
+#: Target points looked at on each ray, nearest to it first (one point per voxel puts
+#: a few on a ray: its front and back surfaces).
+RAY_NEIGHBOURS = 8
+
+
+@dataclass(frozen=True)
+class PoseEvidence:
+    """How a pose fits the target (see the module docstring).
+
+    Attributes
+    ----------
+    fit : float
+        Share of the source points the target could show within a voxel of it, [0, 1]
+        (``result.fit``).
+    target_fit : float
+        Share of the target's points inside the posed source's ball within a voxel of
+        the source, [0, 1] (1 when the ball holds none).
+    plane_distance : float
+        Median point-to-plane distance of the source inliers, in voxels (1 when there is
+        no inlier).
+    normal_agreement : float
+        Share of the inliers whose normals agree, [0, 1] (0 when there is none).
+    free_space : float or None
+        Share of the source points facing the target's sensor (:data:`MIN_INCIDENCE`)
+        that lie in its free space, [0, 1]; None where the target's sensor is unknown.
+    rival_fit : float
+        Fit of the best distinct pose found (:func:`o3d_spectral.verification.ambiguity`),
+        [0, 1].
+    ambiguous : bool
+        That pose fits as well as this one.
+    rival_self_match : float
+        How far the turn between the two poses moves the source off its own surface,
+        voxels (0: a symmetry of the source; inf when no rival was found).
+    two_views : bool
+        The source and the target are both single views of a located sensor, matched
+        whole: the fit counts what the target's sensor could see of the source, their
+        overlap, which may be small for a right pose.
+    """
+
+    fit: float
+    target_fit: float
+    plane_distance: float
+    normal_agreement: float
+    free_space: float | None
+    rival_fit: float = 0.0
+    ambiguous: bool = False
+    rival_self_match: float = float("inf")
+    two_views: bool = False
+
+
+def pose_evidence(
+    source_points: NDArray[np.float64], source_normals: NDArray[np.float64],
+    target_points: NDArray[np.float64], target_normals: NDArray[np.float64],
+    pose: NDArray[np.float64], voxel_size: float, *, fit: float, rival_fit: float = 0.0,
+    ambiguous: bool = False, rival_self_match: float = float("inf"), two_views: bool = False,
+    sensor: NDArray[np.float64] | None = None, two_sided: bool = False,
+) -> PoseEvidence:
+    """The evidence of ``pose`` (see :class:`PoseEvidence`).
+
+    Parameters
+    ----------
+    source_points, source_normals : ndarray, shape (M, 3)
+        The source, one point per voxel (metres), and its unit normals (zero where
+        unknown), before ``pose``.
+    target_points, target_normals : ndarray, shape (N, 3)
+        The target's down-sampled points (metres) and unit normals.
+    pose : ndarray, shape (4, 4)
+        Source to target.
+    voxel_size : float
+        Metres; distances are measured in it.
+    fit, rival_fit, ambiguous, rival_self_match, two_views
+        As :class:`PoseEvidence` holds them (:mod:`o3d_spectral.verification`).
+    sensor : ndarray, shape (3,), or None
+        The target's sensor (metres) where the target is a single view whose sensor was
+        located; None otherwise (no free-space test, no culling).
+    two_sided : bool
+        The source was read two-sided (its normals' signs mean nothing): every point
+        faces the sensor.
+
+    Returns
+    -------
+    PoseEvidence
+    """
+    v = float(voxel_size)
+    R, t = pose[:3, :3], pose[:3, 3]
+    posed, normals = source_points @ R.T + t, source_normals @ R.T
+    centre = posed.mean(axis=0)
+    radius = float(np.sqrt(np.max(np.sum((posed - centre) ** 2, axis=1)))) + 2.0 * v
+    near = np.sum((target_points - centre) ** 2, axis=1) <= radius * radius
+    near_points, near_normals = target_points[near], target_normals[near]
+    facing = np.ones(len(posed), dtype=bool)
+    if sensor is not None and not two_sided:  # what the sensor could see of the source
+        facing = np.einsum("ij,ij->i", normals, sensor - posed) > 0.0
+        if facing.sum() < MIN_POINTS:
+            facing[:] = True
+    shown, shown_normals = posed[facing], normals[facing]
+    rival = {"rival_fit": float(rival_fit), "ambiguous": bool(ambiguous),
+             "rival_self_match": float(rival_self_match), "two_views": bool(two_views)}
+    if len(near_points) == 0:
+        return PoseEvidence(float(fit), 1.0, 1.0, 0.0, None if sensor is None else 0.0,
+                            **rival)
+    distance, nearest = cKDTree(near_points).query(shown, distance_upper_bound=v)
+    inlier = np.isfinite(distance)
+    plane, agreement = 1.0, 0.0
+    if inlier.any():
+        j = nearest[inlier]
+        plane = float(np.median(np.abs(np.einsum(
+            "ij,ij->i", shown[inlier] - near_points[j], near_normals[j])))) / v
+        cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], near_normals[j]))
+        agreement = float(np.mean(cosine > np.cos(np.deg2rad(NORMAL_AGREEMENT_ANGLE))))
+    inside = near_points[np.sum((near_points - centre) ** 2, axis=1) <= (radius - v) ** 2]
+    target_fit = 1.0
+    if len(inside):
+        explained, _ = cKDTree(posed).query(inside, distance_upper_bound=v)
+        target_fit = float(np.mean(np.isfinite(explained)))
+    free = None
+    if sensor is not None:  # on the points the sensor sees squarely (not at grazing rays)
+        rays = sensor - shown
+        incidence = np.einsum("ij,ij->i", shown_normals, rays)
+        incidence /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
+        square = np.abs(incidence) > MIN_INCIDENCE if two_sided else incidence > MIN_INCIDENCE
+        free = _free_space(shown[square], target_points, sensor, v)
+    return PoseEvidence(float(fit), target_fit, plane, agreement, free, **rival)
+
+
+def _free_space(
+    points: NDArray[np.float64], target_points: NDArray[np.float64],
+    sensor: NDArray[np.float64], voxel_size: float,
+) -> float:
+    """Share of ``points`` (K, 3, metres) with a target point on their ray from
+    ``sensor`` (within :data:`RAY_RADIUS` voxels) whose nearest such point lies over
+    :data:`FREE_SPACE_DEPTH` voxels behind them."""
+    if len(points) == 0:
+        return 0.0
+    rays = points - sensor
+    depth = np.linalg.norm(rays, axis=1)
+    directions = rays / np.maximum(depth, 1e-12)[:, None]
+    seen = target_points - sensor
+    seen_depth = np.linalg.norm(seen, axis=1)
+    seen_directions = seen / np.maximum(seen_depth, 1e-12)[:, None]
+    width = RAY_RADIUS * voxel_size / np.maximum(depth, 1e-12)  # chord on the unit sphere
+    axis = directions.mean(axis=0)
+    axis /= max(float(np.linalg.norm(axis)), 1e-12)
+    cone = float(np.max(np.linalg.norm(directions - axis, axis=1))) + float(width.max())
+    in_cone = np.linalg.norm(seen_directions - axis, axis=1) <= cone  # the source's rays only
+    if not in_cone.any():
+        return 0.0
+    seen_depth, seen_directions = seen_depth[in_cone], seen_directions[in_cone]
+    gap, index = cKDTree(seen_directions).query(directions, k=RAY_NEIGHBOURS,
+                                                 distance_upper_bound=float(width.max()))
+    on = gap <= width[:, None]  # within each ray's own width (inf where none)
+    candidate = np.where(on, seen_depth[np.minimum(index, len(seen_depth) - 1)], np.inf)
+    nearest = candidate.min(axis=1)
+    on_ray = on.any(axis=1)
+    behind = on_ray & (nearest > depth + FREE_SPACE_DEPTH * voxel_size)
+    return float(np.mean(behind))
