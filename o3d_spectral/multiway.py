@@ -65,9 +65,9 @@ def registration_multiway(
        optimised poses registered again by point-to-plane ICP from them, and the graph
        optimised again.
 
-    The pairwise calls' low-fit warnings are not logged during the call (scans that do
-    not overlap fit poorly, and the selection expects it); each pair's ``fit`` is in
-    ``result.pairs``.
+    The pairwise calls' low-confidence warnings are not logged during the call (scans
+    that do not overlap fit poorly, and the selection expects it); each pair's ``fit`` is
+    in ``result.pairs``.
 
     Parameters
     ----------
@@ -115,15 +115,15 @@ def registration_multiway(
 
 
 class _LowFitFilter(logging.Filter):
-    """Drops the pairwise calls' low-fit warnings."""
+    """Drops the pairwise calls' low-confidence warnings."""
 
     def filter(self, record: logging.LogRecord) -> bool:
-        return not record.getMessage().startswith("low fit")
+        return not record.getMessage().startswith("low confidence")
 
 
 @contextlib.contextmanager
 def _quiet_low_fit() -> Iterator[None]:
-    """The diagnostics' low-fit warnings left unlogged during the block: between scans
+    """The diagnostics' low-confidence warnings left unlogged during the block: between scans
     that do not overlap a low fit is expected, and the selection handles it."""
     quiet = _LowFitFilter()
     logging.getLogger(diagnostics.__name__).addFilter(quiet)

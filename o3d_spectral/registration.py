@@ -197,7 +197,8 @@ def registration_spectral_global(
     -------
     SpectralRegistrationResult
         ``transformation`` maps source points onto the target (4x4, float64, rigid);
-        ``hypotheses`` and ``confidence`` say how distinct the best pose was.
+        ``hypotheses`` and ``search_margin`` say how distinct the best pose was;
+        ``confidence`` how likely it is to be right.
 
     Raises
     ------
@@ -259,7 +260,7 @@ def _placed_result(
     result.confirmed = placed.confirmed
     pose = placed.transformation
     result.hypotheses = [(pose @ run.init, placed.fit)]
-    result.confidence = placed.fit - placed.runner_up
+    result.search_margin = placed.fit - placed.runner_up
     result.rival_fit = placed.runner_up
     return Climb(run.moving.centroid, converged=True), pose, result
 
@@ -277,7 +278,7 @@ def _searched(
     ranked_iterates = sorted((state.best_iterate() for state in climbs), key=lambda i: -i[0])
     result = SpectralRegistrationResult()
     result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked_iterates]
-    result.confidence = confidence([(score, M) for M, score in result.hypotheses])
+    result.search_margin = confidence([(score, M) for M, score in result.hypotheses])
     _, pose, record = ranked_iterates[0]
     result.translation_peak = record.translation_peak
     if finder.ascends:

@@ -8,6 +8,7 @@ from numpy.typing import NDArray
 
 from .io.cloud import CloudReading
 from .law import IterationRecord
+from .pose_evidence import PoseEvidence
 
 __all__ = ["SpectralRegistrationResult"]
 
@@ -39,27 +40,41 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         Metres.
     translation_peak : float
         Phase-correlation peak height in [0, 1] at the returned pose before the
-        refinement, a confidence figure.
+        refinement, a figure of the search.
     hypotheses : list of (ndarray (4, 4), float)
         Global call only: for each climbed hypothesis, its best-scoring iterate and its
         score (phase-correlation peak times EGI correlation), best first. The returned
         transformation is the first, refined.
     confidence : float
-        Global call only: the best score minus that of the best hypothesis ending in a
-        distinct rotation (over 10 degrees away); 0 for the local call. A figure of the
-        search, not a failure signal (``fit`` is one).
+        The probability, in [0, 1], that the pose is right: within 5 degrees and 1 cm
+        of the truth at the source's centroid, over the object's symmetries where it has
+        some. A logistic model (:mod:`o3d_spectral.confidence_model`) of the pose's
+        evidence (:attr:`pose_evidence`), calibrated on development registrations and
+        checked on held-back ones (docs/errors.md); under 0.5 a warning says the pose may
+        be wrong. Both calls.
+    search_margin : float
+        Global call only: the best hypothesis' score minus that of the best hypothesis
+        ending in a distinct rotation (over 10 degrees away); for a confirmed result, its
+        fit's lead over the best distinct alternative; 0 for the local call. A figure of
+        the search.
     fit : float
         How well the returned pose fits, in [0, 1]: the share of the source's points (one
         per voxel) that the target's sensor would see there (all of them when the target
         is not a single view) lying within one voxel of the target after a short
         point-to-plane polish (:func:`o3d_spectral.search.confirmation.fit`). Unlike
         ``fitness`` it does not count the back of a model, which a view cannot hold, as
-        missed (:mod:`o3d_spectral.verification`). The low-fit warning
-        (:func:`o3d_spectral.diagnostics.low_fit`) is based on it and on ``rival_fit``;
-        docs/results.md gives how often it is right on the suites and real scans.
+        missed (:mod:`o3d_spectral.verification`). One of the confidence's inputs.
     rival_fit : float
         Global call only: the best ``fit`` of a hypothesis that ends over 10 degrees from
         the returned pose (0 when there is none, and for the local call).
+    ambiguity : float or None
+        Where a distinct pose fits as well as the returned one (within
+        :data:`o3d_spectral.verification.AMBIGUITY_MARGIN`): the angle between them,
+        degrees (a symmetric object, or one the target shows too little of to tell);
+        None otherwise. A warning says so.
+    pose_evidence : PoseEvidence or None
+        What the confidence was computed from (:class:`o3d_spectral.pose_evidence.PoseEvidence`):
+        the fits, the plane distance, the normals' agreement, the free-space violation.
     source_reading, target_reading : CloudReading
         How each cloud was read: where its normals came from (given, re-oriented,
         estimated), the rule that oriented them, and the direction towards its sensor
@@ -72,7 +87,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     confirmed : bool
         Global call only: the search's best placed hypothesis was confirmed by its fit
         (:mod:`o3d_spectral.search.confirmation`) and the climbs were skipped; ``hypotheses``
-        then holds that pose with its fit, ``confidence`` its fit's lead over the best
+        then holds that pose with its fit, ``search_margin`` its fit's lead over the best
         distinct alternative, and ``history`` is empty.
     stage_times : dict of str to float
         Seconds spent in each stage of the call, in the order they ran
@@ -91,8 +106,11 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.translation_peak = 0.0
         self.hypotheses: list[tuple[NDArray[np.float64], float]] = []
         self.confidence = 0.0
+        self.search_margin = 0.0
         self.fit = 0.0
         self.rival_fit = 0.0
+        self.ambiguity: float | None = None
+        self.pose_evidence: PoseEvidence | None = None
         self.source_reading = CloudReading()
         self.target_reading = CloudReading()
         self.target_viewpoint: NDArray[np.float64] | None = None

@@ -3,7 +3,8 @@
 :func:`start` checks the arguments, centres the clouds on the target and prepares both
 (:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.stepper.MovingCloud`);
 :func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), measures it as Open3D
-does and by its fit (:mod:`o3d_spectral.verification`), and fills the result.
+does, by its fit (:mod:`o3d_spectral.verification`) and by the calibrated confidence
+(:mod:`o3d_spectral.confidence_model`), and fills the result.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import centring
 from ._checks import check_instance, check_number, check_transformation, check_voxel_size
+from .confidence_model import confidence
 from .diagnostics import registration_warnings
 from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
 from .io.units import check_same_units
@@ -28,13 +30,14 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
+from .pose_evidence import pose_evidence
 from .prepared import PreparedSource
 from .prepared_target import PreparedTarget
 from .refinement import near_pose, refine, representatives, with_normals
 from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
 from .stepper import MovingCloud, SpectralStepper
-from .verification import verify
+from .verification import ambiguity, measure
 
 __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -156,12 +159,11 @@ def finish(
     distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
     near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
-    result.fit, rival_fit = _verified(run, target, transformation, result.hypotheses)
-    result.rival_fit = max(result.rival_fit, rival_fit)  # the confirmation's rivals too
+    _measured(run, result, target, transformation)
     result.warnings = registration_warnings(
         converged=best.converged, max_iteration=run.criteria.max_iteration,
         readings={"source": result.source_reading, "target": result.target_reading},
-        fit=result.fit, rival_fit=result.rival_fit,
+        confidence=result.confidence, ambiguity=result.ambiguity,
     )
     if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
         evaluation = o3d.pipelines.registration.evaluate_registration(
@@ -182,16 +184,34 @@ def finish(
     return result
 
 
-def _verified(
-    run: Run, target: o3d.geometry.PointCloud, transformation: NDArray[np.float64],
-    hypotheses: list[tuple[NDArray[np.float64], float]],
-) -> tuple[float, float]:
-    """:func:`o3d_spectral.verification.verify` of the returned ``transformation`` (4, 4,
-    source to target) against the other ``hypotheses`` (the result's, same frame)."""
+def _measured(
+    run: Run, result: SpectralRegistrationResult, target: o3d.geometry.PointCloud,
+    transformation: NDArray[np.float64],
+) -> None:
+    """Measure the returned ``transformation`` (4, 4, source to target, the run's frame)
+    once: its fit and rival fit (:func:`o3d_spectral.verification.measure`, against the
+    result's other hypotheses), the best distinct pose that fits as well
+    (:func:`o3d_spectral.verification.ambiguity`), its evidence
+    (:func:`o3d_spectral.pose_evidence.pose_evidence`) and the calibrated confidence
+    (:mod:`o3d_spectral.confidence_model`); set them in ``result``."""
     to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
-    return verify(run.stepper, run.moving, with_normals(target, *run.fixed_normals),
-                  transformation @ to_moving, [M @ to_moving for M, _ in hypotheses],
-                  culls=run.situation.culls)
+    fixed = with_normals(target, *run.fixed_normals)
+    pose = transformation @ to_moving
+    others = [M @ to_moving for M, _ in result.hypotheses]
+    culls = run.situation.culls
+    measured = measure(run.stepper, run.moving, fixed, pose, others, culls=culls)
+    result.fit = measured.fit
+    result.rival_fit = max(result.rival_fit, measured.rival_fit)  # the confirmation's too
+    rival = ambiguity(run.stepper, run.moving, fixed, pose, measured, culls=culls)
+    result.ambiguity = rival.angle if rival.ambiguous else None
+    evidence = pose_evidence(
+        run.moving.points, run.moving.point_normals, *run.fixed_normals, pose,
+        run.stepper.voxel_size, fit=measured.fit, rival_fit=rival.fit,
+        ambiguous=rival.ambiguous, rival_self_match=rival.self_match,
+        two_views=run.stepper.viewpoint is not None and not culls,
+        sensor=run.stepper.viewpoint, two_sided=run.moving.reading.two_sided)
+    result.pose_evidence = evidence
+    result.confidence = confidence(evidence)
 
 
 def subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:

@@ -62,7 +62,7 @@ def test_a_clear_case_is_confirmed_and_skips_the_climbs(drill):
     assert result.confirmed
     assert list(result.stage_times) == ["prepare", "candidates", "confirm", "polish"]
     assert result.history == [] and result.converged
-    assert result.fit >= confirmation.MIN_FIT and result.confidence > 0.0
+    assert result.fit >= confirmation.MIN_FIT and result.search_margin > 0.0
     center = np.asarray(source.points).mean(axis=0)
     assert rotation_error(result.transformation, T) < 1.0
     assert translation_error(result.transformation, T, center=center) < 0.002

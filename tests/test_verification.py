@@ -1,5 +1,5 @@
-"""The failure signal: the fit of the returned pose and of its distinct rivals
-(o3d_spectral.verification) and the low-fit warning (o3d_spectral.diagnostics)."""
+"""The fit of the returned pose and of its distinct rivals (o3d_spectral.verification),
+and the warnings on the calibrated confidence and on ambiguity (o3d_spectral.diagnostics)."""
 
 import logging
 
@@ -50,7 +50,7 @@ def test_the_truth_fits_whole_a_wrong_pose_does_not(drill):
     assert fit > 0.95 and rival == 0.0
     flipped = about(T, 180.0, (1.0, 0.0, 0.0))  # upside down
     wrong, _ = verification.verify(stepper, moving, target, flipped, culls=False)
-    assert wrong < diagnostics.LOW_FIT
+    assert wrong < 0.7
     # the flipped pose is a distinct rival of the truth; a start 4 degrees off is not
     _, rival = verification.verify(stepper, moving, target, T, [flipped], culls=False)
     assert rival == pytest.approx(wrong)
@@ -64,17 +64,20 @@ def test_a_right_global_result_fits_and_is_not_flagged(drill):
     result = o3d_spectral.registration_spectral_global(source, target, VOXEL)
     assert rotation_error(result.transformation, T) < 2.0
     assert result.fit > 0.95 and result.rival_fit < result.fit - 0.2
-    assert not any(w.startswith("low fit") for w in result.warnings)
+    assert result.confidence > 0.9
+    assert not any("may be wrong" in w for w in result.warnings)
 
 
 def test_a_wrong_local_result_is_flagged(drill, caplog):
-    """The local law from the identity, 150 degrees away, ends wrong: warned, by its fit."""
+    """The local law from the identity, 150 degrees away, ends wrong: warned, by its
+    confidence."""
     source, target, T = drill
     with caplog.at_level(logging.WARNING, logger="o3d_spectral"):
         result = o3d_spectral.registration_spectral(source, target, VOXEL)
     assert rotation_error(result.transformation, T) > 10.0
-    assert result.fit < diagnostics.LOW_FIT and result.rival_fit == 0.0
-    flagged = [w for w in result.warnings if w.startswith("low fit")]
+    assert result.fit < 0.7 and result.rival_fit == 0.0
+    assert result.confidence < diagnostics.WARN_BELOW
+    flagged = [w for w in result.warnings if "may be wrong" in w]
     assert len(flagged) == 1
     assert flagged[0] in [r.getMessage() for r in caplog.records]
 
@@ -86,22 +89,30 @@ def test_a_model_right_on_a_single_view_fits_though_its_fitness_is_low():
     result = o3d_spectral.registration_spectral_global(instance.source, instance.target, VOXEL)
     assert instance_metrics(result.transformation, instance)["success"]
     assert result.fitness < 0.7
-    assert result.fit >= diagnostics.LOW_FIT
-    assert not any(w.startswith("low fit") for w in result.warnings)
+    assert result.fit >= 0.7 and result.confidence > 0.5
+    assert not any("may be wrong" in w for w in result.warnings)
 
 
-@pytest.mark.parametrize(("fit", "rival", "flagged"), [
-    (0.99, 0.0, False), (0.99, 0.99, False), (0.8, 0.83, False),  # a rival as good: a box
-    (0.5, 0.0, True), (0.5, 0.1, True), (0.69, 0.0, True),  # fits little
-    (0.8, 0.9, True), (0.9, 0.96, True),  # a distinct pose fits clearly better
+@pytest.mark.parametrize(("confidence", "flagged"), [
+    (0.99, False), (0.5, False), (0.499, True), (0.0, True),
 ])
-def test_the_warning_follows_the_fit_and_the_rival(fit, rival, flagged):
-    assert diagnostics.low_fit(fit, rival) == flagged
+def test_the_warning_fires_under_half_confidence_only(confidence, flagged):
+    assert diagnostics.may_be_wrong(confidence) == flagged
     reading = o3d_spectral.io.cloud.CloudReading()
     found = diagnostics.registration_warnings(
-        converged=True, max_iteration=100, readings={"source": reading}, fit=fit,
-        rival_fit=rival)
-    assert [w.startswith("low fit") for w in found] == ([True] if flagged else [])
+        converged=True, max_iteration=100, readings={"source": reading},
+        confidence=confidence)
+    assert [w.startswith(f"low confidence {confidence:.2f}") and "may be wrong" in w
+            for w in found] == ([True] if flagged else [])
+
+
+def test_the_ambiguity_warning_names_the_angle():
+    reading = o3d_spectral.io.cloud.CloudReading()
+    found = diagnostics.registration_warnings(
+        converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
+        ambiguity=179.6)
+    assert found == ["ambiguous: a pose 180 deg away fits as well (a symmetric object?): "
+                     "result.ambiguity"]
 
 
 def test_the_local_call_has_no_rival():

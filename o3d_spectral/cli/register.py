@@ -260,6 +260,7 @@ def _summary(result, voxel_size: float) -> dict:
         "num_iterations": result.num_iterations,
         "run_time": result.run_time,
         "confidence": result.confidence,
+        "ambiguity_deg": result.ambiguity,
         "source_normals": _reading(result.source_reading),
         "target_normals": _reading(result.target_reading),
         "target_viewpoint": None if result.target_viewpoint is None
@@ -319,8 +320,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         np.savetxt(out, result.transformation, fmt="%.9f")
         print(
-            f"fitness {result.fitness:.4f}  fit {result.fit:.4f}  "
-            f"inlier_rmse {result.inlier_rmse:.6f} m  "
+            f"confidence {result.confidence:.3f}  fitness {result.fitness:.4f}  "
+            f"fit {result.fit:.4f}  inlier_rmse {result.inlier_rmse:.6f} m  "
             f"(at {result.max_correspondence_distance:.4g} m)  converged {result.converged}  "
             f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
             + (f"  voxel_size {voxel_size:.4g} m (auto)" if auto else ""), file=out,

@@ -1,0 +1,115 @@
+"""The calibrated confidence: the probability that a registration's pose is right.
+
+*Right* means within 5 degrees and 1 cm of the truth at the source's centroid, the
+errors taken over the object's symmetries where it has some (a can turned about its
+axis is right). The probability is a logistic model of the pose's evidence
+(:class:`o3d_spectral.pose_evidence.PoseEvidence`)::
+
+    confidence = 1 / (1 + exp(-z)),   z = BIAS + sum(COEFFICIENTS[name] * feature[name])
+
+with the features of :func:`features`. A warning says the pose may be wrong when the
+confidence is under :data:`WARN_BELOW`.
+
+The coefficients were fitted by ``python eval/calibrate_confidence.py --out
+out/calibrate_confidence`` (L2-penalised logistic regression on standardised features,
+then written back in raw units) on the fitting part of its development groups (model
+views, occlusions and scenes, crops of models, turntable pairs, the real dragon scan
+pairs and YCB-Video crops, a crop of an object against its scene, wrong-object pairs),
+and checked on the held-back part; ``docs/errors.md`` gives the held-back figures and
+``docs/data/`` the script's output (``calibrate_confidence_*``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .pose_evidence import PoseEvidence
+from .verification import ASYMMETRIC
+
+__all__ = ["BIAS", "COEFFICIENTS", "FEATURES", "WARN_BELOW", "features", "confidence",
+           "probability"]
+
+#: The pose may be wrong below this confidence (the odds are against it).
+WARN_BELOW = 0.5
+#: Shares are clipped to [SHARE_CLIP, 1 - SHARE_CLIP] before their logit.
+SHARE_CLIP = 0.02
+#: Added to the plane distance (voxels) before its logarithm.
+PLANE_FLOOR = 1e-3
+
+#: The model's features, in the order of :data:`COEFFICIENTS`.
+FEATURES = ("logit_fit_object", "logit_fit_views", "two_views", "logit_target_fit",
+            "log_plane_object", "log_plane_views", "logit_normals_object", "sqrt_free_space",
+            "sensor_known", "ambiguous_different")
+
+# Fitted by eval/calibrate_confidence.py (see the module docstring): command, data and
+# commit in docs/data/sources.json ("calibrate_confidence_summary"); the same numbers in
+# docs/data/calibrate_confidence_coefficients.json.
+#: The logistic model's intercept.
+BIAS = -2.6192
+#: The logistic model's coefficient of each feature (raw units).
+COEFFICIENTS = {
+    "logit_fit_object": 1.9887,
+    "logit_fit_views": 0.1942,
+    "two_views": 7.2482,
+    "logit_target_fit": -0.2513,
+    "log_plane_object": -1.5164,
+    "log_plane_views": 0.0618,
+    "logit_normals_object": 1.8877,
+    "sqrt_free_space": -34.0804,
+    "sensor_known": -1.9872,
+    "ambiguous_different": -0.2014,
+}
+
+
+def _logit(share: float) -> float:
+    p = min(max(float(share), SHARE_CLIP), 1.0 - SHARE_CLIP)
+    return float(np.log(p / (1.0 - p)))
+
+
+def features(evidence: PoseEvidence) -> dict[str, float]:
+    """The model's features of ``evidence`` (see :data:`FEATURES`).
+
+    - ``logit_fit_object`` / ``logit_fit_views``: the logit of the fit, apart for two
+      views matched whole (their fit is their overlap) and for the rest, with
+      ``two_views`` (0 or 1) their own intercept;
+    - ``log_plane_object`` / ``log_plane_views``: the logarithm of the plane distance,
+      apart in the same way;
+    - ``logit_normals_object``: the logit of the normals' agreement, for the rest only
+      (between two views a surface seen at grazing angles by one has poor normals);
+    - ``logit_target_fit``: the logit of the target fit;
+    - ``sqrt_free_space`` and ``sensor_known``: 0 where the target's sensor is unknown
+      (``evidence.free_space`` None), the model then resting on the other features;
+    - ``ambiguous_different``: 1 where a distinct pose fits as well and is not the
+      returned one turned by a symmetry of the source (one of the two is wrong, and the
+      target cannot tell which).
+    """
+    free = evidence.free_space
+    fit = _logit(evidence.fit)
+    plane = float(np.log(evidence.plane_distance + PLANE_FLOOR))
+    views = evidence.two_views
+    different = evidence.ambiguous and evidence.rival_self_match >= ASYMMETRIC
+    return {
+        "logit_fit_object": 0.0 if views else fit,
+        "logit_fit_views": fit if views else 0.0,
+        "two_views": float(views),
+        "logit_target_fit": _logit(evidence.target_fit),
+        "log_plane_object": 0.0 if views else plane,
+        "log_plane_views": plane if views else 0.0,
+        "logit_normals_object": 0.0 if views else _logit(evidence.normal_agreement),
+        "sqrt_free_space": 0.0 if free is None else float(np.sqrt(free)),
+        "sensor_known": 0.0 if free is None else 1.0,
+        "ambiguous_different": float(different),
+    }
+
+
+def probability(values: dict[str, float], bias: float = BIAS,
+                coefficients: dict[str, float] | None = None) -> float:
+    """The logistic model at the features ``values`` (:func:`features`), in [0, 1]."""
+    coefficients = COEFFICIENTS if coefficients is None else coefficients
+    z = bias + sum(coefficients[name] * values[name] for name in FEATURES)
+    return float(1.0 / (1.0 + np.exp(-np.clip(z, -500.0, 500.0))))
+
+
+def confidence(evidence: PoseEvidence) -> float:
+    """The probability, in [0, 1], that the pose measured by ``evidence`` is right."""
+    return probability(features(evidence))
