@@ -1,5 +1,5 @@
 """Voxel advice and failure signal: the suggested voxel size against the hand-chosen one,
-and how well the low-fit warning and Open3D's ``fitness`` tell wrong poses from right ones.
+and how well the may-be-wrong warning and Open3D's ``fitness`` tell wrong poses from right ones.
 
 Every instance is registered by ``o3d_spectral.registration_spectral_global`` (defaults)
 twice: at the hand-chosen voxel size (the suites': 8 mm, as ``o3d-spectral eval`` and the
@@ -18,9 +18,9 @@ Tables printed (Markdown), and written with the rows (``rows.csv``) to ``--out``
    each one's success rate, the difference in points, and the median time of a call
    (one process, every core);
 2. failure signal, per group and overall, on the hand-chosen runs and on the suggested
-   ones: how many poses were wrong, and for the low-fit warning
-   (``o3d_spectral.diagnostics.low_fit`` of the rows' ``fit`` and ``rival_fit``, the
-   call's own rule: each run checks it against the warning logged) and ``fitness`` under
+   ones: how many poses were wrong, and for the may-be-wrong warning
+   (``o3d_spectral.diagnostics.may_be_wrong`` of the rows' ``confidence``, the call's own
+   rule: each run checks it against the warning logged) and ``fitness`` under
    0.3 and 0.5, how many were flagged, the precision (share of the
    flagged that were wrong) and the recall (share of the wrong that were flagged).
 
@@ -41,13 +41,13 @@ from pathlib import Path
 import numpy as np
 from failure_signal import rates  # the same precision and recall as its table
 
-from o3d_spectral.diagnostics import low_fit
+from o3d_spectral.diagnostics import may_be_wrong
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 #: The suites' hand-chosen voxel size (metres): the paper's, as the benchmarks run them.
 SUITE_VOXEL = 0.008
 FITNESS_THRESHOLDS = (0.3, 0.5)
-WARNING_START = "low fit"  # how the low-fit warning begins (o3d_spectral.diagnostics)
+WARNING_TEXT = "may be wrong"  # in the confidence's warning (o3d_spectral.diagnostics)
 
 
 def tasks(groups: list[str], suites: Path | None, start: int, limit: int, rotations: int):
@@ -78,14 +78,14 @@ def register(source, target, voxel: float, score) -> dict:
     result = o3d_spectral.registration_spectral_global(source, target, voxel)
     seconds = time.perf_counter() - began
     rotation, translation, success = score(np.asarray(result.transformation))
-    warned = any(w.startswith(WARNING_START) for w in result.warnings)
-    if warned != low_fit(result.fit, result.rival_fit):  # the table recomputes it so
-        raise AssertionError("the low-fit warning disagrees with diagnostics.low_fit")
+    warned = any(WARNING_TEXT in w for w in result.warnings)
+    if warned != may_be_wrong(result.confidence):  # the table recomputes it so
+        raise AssertionError("the warning disagrees with diagnostics.may_be_wrong")
     return {"voxel_m": voxel, "seconds": seconds, "rotation_error_deg": rotation,
             "translation_error_m": translation, "success": bool(success),
             "fitness": result.fitness, "fit": result.fit, "rival_fit": result.rival_fit,
             "confidence": result.confidence, "confirmed": result.confirmed,
-            "low_fit_warning": warned}
+            "warned": warned}
 
 
 def run(args: argparse.Namespace, csv_path: Path) -> list[dict]:
@@ -148,9 +148,9 @@ def advice_table(rows: list[dict]) -> str:
 
 
 def signal_table(rows: list[dict], choice: str) -> str:
-    # the warning as diagnostics.low_fit flags it (the call's own rule, which run()
-    # checks against the logged warning): rows of earlier constants are judged by these
-    signals = {"low-fit warning": lambda r: low_fit(float(r["fit"]), float(r["rival_fit"]))}
+    # the warning as diagnostics.may_be_wrong flags it (the call's own rule, which run()
+    # checks against the logged warning)
+    signals = {"may-be-wrong warning": lambda r: may_be_wrong(float(r["confidence"]))}
     for t in FITNESS_THRESHOLDS:
         signals[f"fitness < {t}"] = lambda r, t=t: float(r["fitness"]) < t
     names = list(signals)

@@ -42,6 +42,7 @@ SCRIPTS = (
     "bench_width.py",
     "bop_poses.py",
     "c1_local.py",
+    "calibrate_confidence.py",
     "check_unchanged.py",
     "confidence_precision.py",
     "derive_real_data.py",
@@ -267,6 +268,31 @@ def test_c1_local(tmp_path):
     names = [line.split()[0] for line in printed.splitlines()[2:]]
     assert names == ["mustard_bottle", "power_drill", "mug", "cracker_box", "banana",
                      "scissors", "all"]
+
+
+def test_calibrate_confidence(tmp_path):
+    """Two units of three groups (a right view, a half crop, a wrong object): one of each
+    fits, one is held back; the refit from the stored rows prints the same tables."""
+    out = tmp_path / "out"
+    printed = run("calibrate_confidence.py", "--out", out, "--groups", "partial",
+                  "half_crop", "wrong_object", "--per-group", 2, cwd=tmp_path)
+    rows = read_csv(out / "rows.csv")
+    assert [r["group"] for r in rows] == ["partial"] * 2 + ["half_crop"] * 2 + ["wrong_object"] * 2
+    assert {"right", "confidence", "fit", "target_fit", "free_space", "ambiguous"} <= rows[0].keys()
+    assert all(r["right"] == "0" for r in rows[4:])  # every pose of a wrong object is wrong
+    summary = read_csv(out / "summary.csv")
+    assert [(s["confidence"], s["part"], s["n"]) for s in summary] == [
+        ("library", "held back", "3"), ("library", "fitting", "3"),
+        ("refit", "held back", "3"), ("refit", "fitting", "3")]
+    groups = read_csv(out / "groups.csv")
+    assert [(g["group"], g["n"]) for g in groups] == [("partial", "1"), ("half_crop", "1"),
+                                                       ("wrong_object", "1")]
+    assert (out / "reliability.png").stat().st_size > 0
+    assert len(read_csv(out / "reliability.csv")) == 10
+    assert len(table_rows(printed, "library")) == 2
+    again = run("calibrate_confidence.py", "--out", tmp_path / "again", "--rows",
+                out / "rows.csv", cwd=tmp_path)
+    assert table_rows(again, "library") == table_rows(printed, "library")
 
 
 def test_check_unchanged(suites, tmp_path):

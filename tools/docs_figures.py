@@ -259,6 +259,32 @@ def method_failures() -> str:
     )
 
 
+def confidence() -> str:
+    """The calibrated confidence on the held-back calls: pooled, then per group."""
+    pooled = {(r["confidence"], r["part"]): r for r in read_csv("calibrate_confidence_summary")}
+    held = pooled["library", "held back"]
+
+    def cell(value: str, digits: int, percent: bool = False) -> str:
+        if value in ("", "nan"):
+            return "-"
+        return f"{100 * float(value):.0f}%" if percent else f"{float(value):.{digits}f}"
+
+    rows = [[r["group"], r["n"], r["wrong"], cell(r["auroc"], 2),
+             f"{r['warned_wrong']} / {r['wrong']}", r["warned_right"], cell(r["brier"], 3)]
+            for r in read_csv("calibrate_confidence_groups")]
+    return "\n".join([
+        f"Held back: {held['n']} calls, {held['wrong']} wrong: AUROC "
+        f"{float(held['auroc']):.3f}; the warning (confidence < 0.5): precision "
+        f"{cell(held['precision'], 0, True)}, recall {cell(held['recall'], 0, True)}; "
+        f"Brier score {float(held['brier']):.3f}.",
+        "",
+        table(["group (held back)", "n", "wrong", "AUROC", "wrong warned", "right warned",
+               "Brier"], rows),
+        "",
+        provenance("calibrate_confidence_summary", "calibrate_confidence_groups"),
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -269,6 +295,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "bop": bop,
     "pairs": pairs,
     "method-failures": method_failures,
+    "confidence": confidence,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 

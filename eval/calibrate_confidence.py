@@ -1,0 +1,425 @@
+"""Calibrate the confidence: fit its logistic model on part of the development groups and
+check it on the rest.
+
+Every instance is registered by ``o3d_spectral.registration_spectral_global(source,
+target, voxel)`` at its defaults; the row keeps the pose's evidence
+(``result.pose_evidence``), whether it is ambiguous (``result.ambiguity``), the
+library's ``result.confidence`` and whether the pose is right: within 5 degrees and 1 cm
+at the source's centroid, over the object's symmetries (``harness.metrics``,
+``harness.real.case_score``); every pose of a wrong-object pair is wrong.
+
+Groups (each instance a *unit*; a real pair turned several ways is one unit):
+
+* ``partial``, ``occluded``, ``cluttered``: a bundled model against a depth view of it
+  (alone, half hidden, in a tabletop scene; ``synthetic.scenes.make_instance``);
+* ``crop_in_scene``: the object's own points cut out of a cluttered view by its label, at
+  a random pose, against the whole view (a crop whose sensor is unknown);
+* ``half_crop``: a model against a copy of itself cut by a plane near its centroid, at a
+  random pose (a crop hides no surface: its right pose must not be warned about);
+* ``turntable_45`` / ``_90`` / ``_135``: two depth views of a model, the turntable turned
+  that far between them (``synthetic.turntable``);
+* ``dragon``: the bundled dragon scans 24-96 degrees apart (``harness.real``), each from
+  ``--rotations`` random rotations;
+* ``wrong_object``: a model against a depth view (partial or occluded) of another model.
+
+Split: within each group, the units are shuffled with ``--seed`` and the first half (odd
+counts: one more) fit the model, the rest are held back. The model: logistic regression
+on the features of ``o3d_spectral.confidence_model.features``, standardised, with an L2
+penalty ``--penalty`` on the weights (not the intercept); its coefficients are printed in
+raw units, as ``o3d_spectral.confidence_model`` holds them.
+
+On the held-back part it reports, for the refitted model and for the library's own
+``result.confidence``: the AUROC between right and wrong poses, the warning's precision
+(share of warned poses that are wrong) and recall (share of wrong poses warned) at
+confidence < 0.5, the Brier score; a table per group; and a reliability diagram
+(predicted against observed, in bins of 0.1).
+
+Writes to ``--out``: ``rows.csv`` (one row per call), ``summary.csv`` (pooled figures),
+``groups.csv`` (per group, held-back), ``coefficients.json`` (the refit) and
+``reliability.png``; with ``--docs``, also ``docs/data/calibrate_confidence_*.csv``, the
+coefficients (``docs/data/calibrate_confidence_coefficients.json``) and
+``docs/img/confidence_reliability.png``. ``--rows FILE`` refits from a ``rows.csv``
+without registering again.
+
+Usage: python eval/calibrate_confidence.py --out out/calibrate_confidence [--per-group 12]
+       [--rotations 3] [--groups partial ...] [--seed 0] [--penalty 0.03] [--docs]
+       [--rows out/calibrate_confidence/rows.csv]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+from scipy.optimize import minimize
+
+import o3d_spectral
+from o3d_spectral import confidence_model
+from o3d_spectral.harness import real
+from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
+from o3d_spectral.harness.metrics import instance_score
+from o3d_spectral.pose_evidence import PoseEvidence
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid, sample_rotation
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.symmetry import model_symmetry
+from o3d_spectral.synthetic.turntable import turntable_pair
+
+ROOT = Path(__file__).resolve().parents[1]
+VOXEL = 0.008
+TURNTABLE = {"turntable_45": 45, "turntable_90": 90, "turntable_135": 135}
+DRAGON_GROUPS = ("dragon_24", "dragon_48", "dragon_72", "dragon_96")
+GROUPS = ("partial", "occluded", "cluttered", "crop_in_scene", "half_crop", *TURNTABLE,
+          "dragon", "wrong_object")
+#: The evidence columns of a row, as ``result.pose_evidence`` names them.
+EVIDENCE = ("fit", "target_fit", "plane_distance", "normal_agreement", "free_space",
+            "rival_fit", "ambiguous", "rival_self_match", "two_views")
+#: Bins of the reliability diagram.
+BINS = 10
+#: Elevation of the turntable pairs' views, degrees.
+ELEVATION = 30.0
+
+Score = Callable[[np.ndarray], tuple[float, float, bool]]
+
+
+@dataclass
+class Case:
+    group: str
+    unit: str
+    source: o3d.geometry.PointCloud
+    target: o3d.geometry.PointCloud
+    voxel: float
+    score: Score
+
+
+def never_right(_: np.ndarray) -> tuple[float, float, bool]:
+    """A wrong-object pair: every pose is wrong."""
+    return math.nan, math.nan, False
+
+
+def cases(group: str, n: int, rotations: int) -> Iterator[Case]:
+    """The first ``n`` units of ``group`` (see the module docstring)."""
+    names = model_names()
+    picks = [names[i % len(names)] for i in range(n)]
+    if group in ("partial", "occluded", "cluttered"):
+        for i, name in enumerate(picks):
+            inst = make_instance(group, name, rng=np.random.default_rng(10_000 + i))
+            yield Case(group, f"{group}_{i}_{name}", inst.source, inst.target, VOXEL,
+                       instance_score(inst))
+    elif group == "crop_in_scene":
+        for i, name in enumerate(picks):
+            yield crop_in_scene(i, name)
+    elif group == "half_crop":
+        for i, name in enumerate(picks):
+            yield half_crop(i, name)
+    elif group in TURNTABLE:
+        for i, name in enumerate(picks):
+            pair = turntable_pair(name, TURNTABLE[group], ELEVATION,
+                                  np.random.default_rng(20_000 + i))
+            yield Case(group, f"{group}_{i}_{name}", pair.source, pair.target, VOXEL,
+                       instance_score(pair))
+    elif group == "dragon":  # round robin over the angles apart
+        by_angle = [real.load_cases([name]) for name in DRAGON_GROUPS]
+        ordered = [c for row in zip(*by_angle, strict=False) for c in row]
+        for case in ordered[:n]:
+            for r in range(rotations):
+                turned, _ = real.randomly_rotated(case, real.rotation_seed(case.name, r))
+                yield Case(group, case.name, turned.source, turned.target,
+                           real.VOXEL_SIZES[case.group], real.case_score(turned))
+    elif group == "wrong_object":
+        for i, name in enumerate(picks):
+            other = names[(names.index(name) + 1 + i // len(names)) % len(names)]
+            condition = ("partial", "occluded")[i % 2]
+            inst = make_instance(condition, other, rng=np.random.default_rng(30_000 + i))
+            points, normals = (a.copy() for a in model_cloud(name, 6000))
+            yield Case(group, f"{name}_on_{other}_{i}", point_cloud(points, normals),
+                       inst.target, VOXEL, never_right)
+    else:
+        raise SystemExit(f"error: unknown group {group!r}; known: {', '.join(GROUPS)}")
+
+
+def crop_in_scene(i: int, name: str) -> Case:
+    """The object's points cut out of a cluttered view, at a random pose, against it."""
+    inst = make_instance("cluttered", name, rng=np.random.default_rng(40_000 + i))
+    points = np.asarray(inst.target.points)[inst.target_labels == 0]
+    rng = np.random.default_rng(41_000 + i)
+    presentation = rigid(sample_rotation(rng), rng.uniform(-0.1, 0.1, size=3))
+    source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).transform(presentation)
+    truth = np.linalg.inv(presentation)
+    symmetry = inst.symmetry.transformed(presentation @ inst.T_gt)
+    return Case("crop_in_scene", f"crop_in_scene_{i}_{name}", source, inst.target, VOXEL,
+                symmetric_score(truth, symmetry, np.asarray(source.points).mean(axis=0)))
+
+
+def half_crop(i: int, name: str) -> Case:
+    """A model against a copy of itself cut by a plane within a fifth of its extent of its
+    centroid, at a random pose."""
+    rng = np.random.default_rng(50_000 + i)
+    points, normals = (a.copy() for a in model_cloud(name, 6000))
+    direction = rng.normal(size=3)
+    direction /= np.linalg.norm(direction)
+    along = (points - points.mean(axis=0)) @ direction
+    keep = along > rng.uniform(-0.2, 0.2) * np.abs(along).max()
+    motion = rigid(sample_rotation(rng), rng.uniform(-0.1, 0.1, size=3))
+    target = point_cloud(points[keep] @ motion[:3, :3].T + motion[:3, 3],
+                         normals[keep] @ motion[:3, :3].T)
+    return Case("half_crop", f"half_crop_{i}_{name}", point_cloud(points, normals), target,
+                VOXEL, symmetric_score(motion, model_symmetry(name), points.mean(axis=0)))
+
+
+def symmetric_score(truth: np.ndarray, symmetry, centre: np.ndarray) -> Score:
+    """Symmetry-aware errors against ``truth`` (4, 4); right under 5 deg and 1 cm."""
+
+    def score(T: np.ndarray) -> tuple[float, float, bool]:
+        rotation = symmetric_rotation_error(T, truth, symmetry)
+        translation = symmetric_translation_error(T, truth, symmetry, center=centre)
+        return rotation, translation, real.is_success(rotation, translation)
+
+    return score
+
+
+def register(case: Case) -> dict:
+    """One call's row: the group, unit, outcome, evidence and the library's confidence."""
+    start = time.perf_counter()
+    result = o3d_spectral.registration_spectral_global(case.source, case.target, case.voxel)
+    seconds = time.perf_counter() - start
+    rotation, translation, right = case.score(np.asarray(result.transformation))
+    evidence = result.pose_evidence
+    row = {"group": case.group, "unit": case.unit, "right": int(right),
+           "rotation_error_deg": rotation, "translation_error_m": translation,
+           "seconds": seconds, "confidence": result.confidence,
+           "warned": int(any("may be wrong" in w for w in result.warnings))}
+    row.update({name: getattr(evidence, name) for name in EVIDENCE})
+    row["free_space"] = "" if evidence.free_space is None else evidence.free_space
+    row["ambiguous"], row["two_views"] = int(evidence.ambiguous), int(evidence.two_views)
+    return row
+
+
+def read_rows(path: Path) -> list[dict]:
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def design(rows: list[dict]) -> np.ndarray:
+    """The model's features of each row, (N, F) in ``confidence_model.FEATURES`` order."""
+    out = []
+    for row in rows:
+        free = row["free_space"]
+        evidence = PoseEvidence(
+            float(row["fit"]), float(row["target_fit"]), float(row["plane_distance"]),
+            float(row["normal_agreement"]), None if free in ("", None) else float(free),
+            float(row["rival_fit"]), bool(int(row["ambiguous"])),
+            float(row["rival_self_match"]), bool(int(row["two_views"])))
+        values = confidence_model.features(evidence)
+        out.append([values[name] for name in confidence_model.FEATURES])
+    return np.asarray(out, dtype=np.float64)
+
+
+def fit_logistic(X: np.ndarray, y: np.ndarray, penalty: float) -> tuple[float, np.ndarray]:
+    """L2-penalised logistic regression on standardised ``X`` (N, F); the intercept and
+    the weights (F,) in raw units."""
+    mean, scale = X.mean(axis=0), X.std(axis=0)
+    scale[scale == 0.0] = 1.0  # a constant feature: weight 0 under the penalty
+    Z = np.c_[np.ones(len(X)), (X - mean) / scale]
+
+    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
+        z = Z @ w
+        value = np.sum(np.logaddexp(0.0, z) - y * z) + penalty * np.sum(w[1:] ** 2)
+        grad = Z.T @ (1.0 / (1.0 + np.exp(-z)) - y)
+        grad[1:] += 2.0 * penalty * w[1:]
+        return float(value), grad
+
+    w = minimize(loss, np.zeros(Z.shape[1]), jac=True, method="L-BFGS-B").x
+    weights = w[1:] / scale
+    return float(w[0] - np.sum(weights * mean)), weights
+
+
+def predict(bias: float, weights: np.ndarray, X: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-np.clip(bias + X @ weights, -500.0, 500.0)))
+
+
+def library_confidence(X: np.ndarray) -> np.ndarray:
+    """The library's confidence at the features ``X`` (N, F), with its constants."""
+    weights = np.array([confidence_model.COEFFICIENTS[n] for n in confidence_model.FEATURES])
+    return predict(confidence_model.BIAS, weights, X)
+
+
+def auroc(p: np.ndarray, right: np.ndarray) -> float:
+    """Probability that a right pose scores above a wrong one (ties count half)."""
+    pos, neg = p[right == 1], p[right == 0]
+    if len(pos) == 0 or len(neg) == 0:
+        return math.nan
+    greater = (pos[:, None] > neg[None, :]).mean()
+    ties = (pos[:, None] == neg[None, :]).mean()
+    return float(greater + 0.5 * ties)
+
+
+def figures(p: np.ndarray, right: np.ndarray) -> dict:
+    """n, wrong, AUROC, the warning's precision and recall at WARN_BELOW, Brier."""
+    warned, wrong = p < confidence_model.WARN_BELOW, right == 0
+    hits = int(np.sum(warned & wrong))
+    return {"n": len(p), "wrong": int(wrong.sum()), "warned": int(warned.sum()),
+            "warned_wrong": hits, "warned_right": int(np.sum(warned & ~wrong)),
+            "auroc": auroc(p, right),
+            "precision": hits / warned.sum() if warned.any() else math.nan,
+            "recall": hits / wrong.sum() if wrong.any() else math.nan,
+            "brier": float(np.mean((p - right) ** 2)) if len(p) else math.nan}
+
+
+def split(rows: list[dict], seed: int) -> np.ndarray:
+    """True where a row is held back: within each group, the units shuffled with
+    ``seed``, all but the first half (rounded up)."""
+    rng = np.random.default_rng(seed)
+    held = np.zeros(len(rows), dtype=bool)
+    for group in dict.fromkeys(r["group"] for r in rows):
+        units = sorted({r["unit"] for r in rows if r["group"] == group})
+        rng.shuffle(units)
+        back = set(units[(len(units) + 1) // 2:])
+        held |= np.array([r["group"] == group and r["unit"] in back for r in rows])
+    return held
+
+
+def reliability(p: np.ndarray, right: np.ndarray) -> list[dict]:
+    """Per bin of predicted confidence: its range, count, mean prediction and observed
+    share of right poses."""
+    edges = np.linspace(0.0, 1.0, BINS + 1)
+    index = np.minimum(np.digitize(p, edges) - 1, BINS - 1)
+    return [{"low": edges[b], "high": edges[b + 1], "n": int(np.sum(index == b)),
+             "predicted": float(p[index == b].mean()) if np.any(index == b) else math.nan,
+             "observed": float(right[index == b].mean()) if np.any(index == b) else math.nan}
+            for b in range(BINS)]
+
+
+def plot(bins: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    ax.plot([0, 1], [0, 1], color="0.6", linestyle="--", label="calibrated")
+    shown = [b for b in bins if b["n"]]
+    ax.plot([b["predicted"] for b in shown], [b["observed"] for b in shown], marker="o",
+            label="held-back calls")
+    for b in shown:
+        ax.annotate(str(b["n"]), (b["predicted"], b["observed"]), textcoords="offset points",
+                    xytext=(4, -10), fontsize=7)
+    ax.axvline(confidence_model.WARN_BELOW, color="tab:red", linewidth=0.8)
+    ax.set(xlim=(0, 1), ylim=(0, 1), xlabel="predicted confidence (bin mean)",
+           ylabel="observed share of right poses", title=title)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def rounded(row: dict) -> dict:
+    """``row`` as written to a CSV file: floats with 6 decimals, the rest as text."""
+    return {k: (f"{v:.6f}" if isinstance(v, float) else str(v)) for k, v in row.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--groups", nargs="+", default=list(GROUPS), choices=GROUPS)
+    parser.add_argument("--per-group", type=int, default=12)
+    parser.add_argument("--rotations", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--penalty", type=float, default=0.03)
+    parser.add_argument("--rows", type=Path, help="refit from this rows.csv")
+    parser.add_argument("--docs", action="store_true",
+                        help="also write docs/data/calibrate_confidence_*.csv and the figure")
+    args = parser.parse_args(argv)
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.rows is not None:
+        rows = read_rows(args.rows)
+    else:
+        rows = []
+        for group in args.groups:
+            for case in cases(group, args.per_group, args.rotations):
+                row = register(case)
+                rows.append(row)
+                print(f"{group:14s} {case.unit:40s} right={row['right']} "
+                      f"confidence={row['confidence']:.3f} {row['seconds']:.2f} s", flush=True)
+        # the calls' own result.confidence is the library's model of their features
+        stored = np.array([float(r["confidence"]) for r in rows])
+        if not np.allclose(library_confidence(design(rows)), stored, atol=1e-9):
+            raise AssertionError("result.confidence differs from the model of its features")
+        rows = [rounded(r) for r in rows]  # as stored: a refit from the file is the same
+        write_csv(args.out / "rows.csv", rows)
+    right = np.array([int(r["right"]) for r in rows])
+    X = design(rows)
+    library = library_confidence(X)
+    held = split(rows, args.seed)
+    refit = library.copy()
+    fitted = len(set(right[~held])) == 2
+    if fitted:
+        bias, weights = fit_logistic(X[~held], right[~held].astype(float), args.penalty)
+        refit = predict(bias, weights, X)
+        coefficients = {"bias": bias, **dict(zip(confidence_model.FEATURES, weights.tolist(),
+                                                 strict=True))}
+        (args.out / "coefficients.json").write_text(json.dumps(coefficients, indent=2) + "\n")
+        print("refit coefficients (raw units):")
+        print(f"BIAS = {bias:.4f}")
+        for name, w in zip(confidence_model.FEATURES, weights, strict=True):
+            print(f'    "{name}": {w:.4f},')
+    else:
+        print("the fitting part holds one class only: no refit (library figures only)")
+    summary = []
+    for name, p in (("library", library), ("refit", refit)):
+        for part, mask in (("held back", held), ("fitting", ~held)):
+            summary.append({"confidence": name, "part": part, **figures(p[mask], right[mask])})
+    groups = []
+    for group in dict.fromkeys(r["group"] for r in rows):
+        mask = held & np.array([r["group"] == group for r in rows])
+        groups.append({"group": group, **figures(library[mask], right[mask]),
+                       "mean_confidence": float(library[mask].mean()) if mask.any() else math.nan})
+    bins = reliability(library[held], right[held])
+    write_csv(args.out / "summary.csv", [rounded(r) for r in summary])
+    write_csv(args.out / "groups.csv", [rounded(r) for r in groups])
+    write_csv(args.out / "reliability.csv", [rounded(r) for r in bins])
+    title = "confidence on held-back calls"
+    plot(bins, args.out / "reliability.png", title)
+    if args.docs:
+        for name in ("summary", "groups", "reliability"):
+            write_csv(ROOT / "docs" / "data" / f"calibrate_confidence_{name}.csv",
+                      read_rows(args.out / f"{name}.csv"))
+        plot(bins, ROOT / "docs" / "img" / "confidence_reliability.png", title)
+        if fitted:
+            (ROOT / "docs" / "data" / "calibrate_confidence_coefficients.json").write_text(
+                (args.out / "coefficients.json").read_text())
+    print()
+    print("| confidence | part | n | wrong | AUROC | precision | recall | Brier |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in summary:
+        print(f"| {r['confidence']} | {r['part']} | {r['n']} | {r['wrong']} | {r['auroc']:.3f} "
+              f"| {r['precision']:.2f} | {r['recall']:.2f} | {r['brier']:.3f} |")
+    print()
+    print("| group (held back) | n | wrong | warned wrong | warned right | Brier |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for r in groups:
+        print(f"| {r['group']} | {r['n']} | {r['wrong']} | {r['warned_wrong']} "
+              f"| {r['warned_right']} | {r['brier']:.3f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
