@@ -28,7 +28,11 @@ def test_register_prints_matrix_and_json(tmp_path, capsys):
     summary = json.loads(out)
     np.testing.assert_allclose(np.array(summary["transformation"])[:3, 3], T[:3, 3], atol=2e-3)
     assert summary["fitness"] > 0.99 and summary["converged"]
-    assert summary["warnings"] == [] and summary["source_normals"]["from"] == "given"
+    # the bottle's front and back fit alike: the one warning says so, the pose is kept
+    assert summary["warnings"] == ["ambiguous: a pose 180 deg away fits as well (a "
+                                   "symmetric object?): result.ambiguity"]
+    assert summary["confidence"] > 0.5 and summary["ambiguity_deg"] == pytest.approx(180, abs=5)
+    assert summary["source_normals"]["from"] == "given"
     assert summary["target_normals"]["view"] is None  # a whole model: no view, no culling
     assert summary["target_viewpoint"] is None
     assert "INFO" not in err  # default level: warnings and errors only

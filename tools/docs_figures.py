@@ -281,7 +281,9 @@ def confidence() -> str:
         table(["group (held back)", "n", "wrong", "AUROC", "wrong warned", "right warned",
                "Brier"], rows),
         "",
-        provenance("calibrate_confidence_summary", "calibrate_confidence_groups"),
+        provenance("calibrate_confidence_summary") + " Per group: "
+        "`docs/data/calibrate_confidence_groups.csv`; every call: "
+        "`docs/data/calibrate_confidence_rows.csv`.",
     ])
 
 

@@ -1,0 +1,166 @@
+"""The calibrated confidence (o3d_spectral.pose_evidence, o3d_spectral.confidence_model)
+and the ambiguity report (o3d_spectral.verification.ambiguity), through both calls."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import o3d_spectral
+from o3d_spectral import confidence_model
+from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
+from o3d_spectral.pose_evidence import PoseEvidence, pose_evidence
+from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.symmetry import model_symmetry
+from tests.conftest import sample_model
+
+VOXEL = 0.008
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def turned(cloud, angle_deg, axis, shift=(0.0, 0.0, 0.0)):
+    T = rigid(so3.exp(np.deg2rad(angle_deg) * np.asarray(axis, float) / np.linalg.norm(axis)),
+              np.asarray(shift, float))
+    return o3d.geometry.PointCloud(cloud).transform(T), T
+
+
+def mesh_cloud(mesh, n=3000):
+    """Points sampled on ``mesh`` with its outward triangle normals (seeded)."""
+    mesh.compute_triangle_normals()
+    o3d.utility.random.seed(0)
+    return mesh.sample_points_poisson_disk(n, use_triangle_normal=True)
+
+
+def may_be_wrong(result):
+    return [w for w in result.warnings if "may be wrong" in w]
+
+
+def ambiguous(result):
+    return [w for w in result.warnings if w.startswith("ambiguous:")]
+
+
+def test_the_free_space_test_sees_a_surface_in_front_of_what_the_sensor_saw():
+    """A plane seen from the origin at 0.5 m: a copy 5 cm nearer the sensor lies where it
+    saw through; a copy 5 cm behind it is hidden (no violation); without a sensor the
+    test is not made."""
+    def plane(half_width):
+        grid = np.stack(np.meshgrid(*[np.arange(-half_width, half_width + 1e-9, 0.005)] * 2),
+                        axis=-1).reshape(-1, 2)
+        points = np.c_[grid, np.full(len(grid), 0.5)]
+        return points, np.tile([0.0, 0.0, -1.0], (len(points), 1))  # facing the sensor
+
+    seen, seen_normals = plane(0.15)  # the target: wider than the source's shadow on it
+    source, normals = plane(0.1)
+    sensor = np.zeros(3)
+    nearer, behind = rigid(np.eye(3), [0, 0, -0.05]), rigid(np.eye(3), [0, 0, 0.05])
+
+    def evidence(pose, with_sensor=True):
+        return pose_evidence(source, normals, seen, seen_normals, pose, VOXEL, fit=0.0,
+                             sensor=sensor if with_sensor else None)
+
+    front, back, right = evidence(nearer), evidence(behind), evidence(np.eye(4))
+    unknown = evidence(nearer, with_sensor=False)
+    assert front.free_space == 1.0 and back.free_space == 0.0 and right.free_space == 0.0
+    assert unknown.free_space is None
+    assert right.plane_distance < 0.01 and right.normal_agreement == 1.0
+    assert right.target_fit < 1.0  # the wider target is not all explained by the source
+
+
+def test_an_unknown_sensor_leaves_the_free_space_feature_neutral():
+    evidence = PoseEvidence(0.9, 0.8, 0.1, 0.9, None)
+    values = confidence_model.features(evidence)
+    assert values["sqrt_free_space"] == 0.0 and values["sensor_known"] == 0.0
+    seen = confidence_model.features(PoseEvidence(0.9, 0.8, 0.1, 0.9, 0.25))
+    assert seen["sqrt_free_space"] == 0.5 and seen["sensor_known"] == 1.0
+
+
+def test_the_coefficients_are_the_stored_calibrations():
+    """The library's constants are those the calibration script fitted and stored."""
+    stored = json.loads((ROOT / "docs" / "data" / "calibrate_confidence_coefficients.json")
+                        .read_text())
+    assert stored["bias"] == pytest.approx(confidence_model.BIAS, abs=1e-4)
+    for name in confidence_model.FEATURES:
+        assert stored[name] == pytest.approx(confidence_model.COEFFICIENTS[name], abs=1e-4)
+
+
+@pytest.fixture(scope="module")
+def drill_view():
+    return make_instance("partial", "power_drill", rng=np.random.default_rng(7))
+
+
+def test_a_right_pose_on_a_clean_view_is_confident(drill_view):
+    right = o3d_spectral.registration_spectral_global(drill_view.source, drill_view.target,
+                                                      VOXEL)
+    assert right.confidence > 0.8 and not may_be_wrong(right)
+    assert right.pose_evidence.free_space == 0.0  # the view's sensor was located
+
+
+@pytest.mark.parametrize("name", ["mug", "cracker_box", "tomato_soup_can"])
+def test_another_object_on_the_view_is_warned(drill_view, name):
+    """Every pose of another model on the drill's view is wrong."""
+    other = point_cloud(*(a.copy() for a in model_cloud(name, 6000)))
+    wrong = o3d_spectral.registration_spectral_global(other, drill_view.target, VOXEL)
+    assert wrong.confidence < confidence_model.WARN_BELOW
+    assert len(may_be_wrong(wrong)) == 1
+
+
+@pytest.mark.parametrize("name", ["power_drill", "mustard_bottle", "banana", "cracker_box",
+                                  "mug"])
+def test_a_right_pose_on_a_half_cropped_copy_is_not_warned(name):
+    """A crop hides no surface: the half the target lacks is not held against the pose,
+    and its cut is not read as free space."""
+    points, normals = (a.copy() for a in model_cloud(name, 6000))
+    along = (points - points.mean(axis=0)) @ np.array([0.48, 0.6, 0.64])
+    motion = rigid(so3.exp(np.array([0.7, -1.1, 0.4])), np.array([0.05, -0.02, 0.03]))
+    keep = along > 0.0
+    target = point_cloud(points[keep] @ motion[:3, :3].T + motion[:3, 3],
+                         normals[keep] @ motion[:3, :3].T)
+    result = o3d_spectral.registration_spectral_global(point_cloud(points, normals), target,
+                                                       VOXEL)
+    symmetry = model_symmetry(name)
+    assert symmetric_rotation_error(result.transformation, motion, symmetry) < 5.0
+    assert symmetric_translation_error(result.transformation, motion, symmetry,
+                                       center=points.mean(axis=0)) < 0.01
+    assert result.confidence >= confidence_model.WARN_BELOW and not may_be_wrong(result)
+
+
+def test_a_box_turned_half_a_turn_is_right_and_ambiguous():
+    box = mesh_cloud(o3d.geometry.TriangleMesh.create_box(0.10, 0.06, 0.03))
+    target, _ = turned(box, 180.0, (0.0, 0.0, 1.0), (0.02, 0.01, 0.0))
+    result = o3d_spectral.registration_spectral_global(box, target, VOXEL)
+    assert result.ambiguity == pytest.approx(180.0, abs=5.0)
+    assert ambiguous(result) == ["ambiguous: a pose 180 deg away fits as well (a symmetric "
+                                 "object?): result.ambiguity"]
+    assert not may_be_wrong(result)
+
+
+@pytest.mark.parametrize("mesh", [
+    o3d.geometry.TriangleMesh.create_sphere(0.04, resolution=40),
+    o3d.geometry.TriangleMesh.create_cylinder(0.03, 0.12, resolution=40),
+], ids=["sphere", "cylinder"])
+def test_a_sphere_and_a_cylinder_are_ambiguous(mesh):
+    cloud = mesh_cloud(mesh)
+    target, _ = turned(cloud, 66.0, (0.3, 0.2, 1.0), (0.01, 0.0, 0.02))
+    result = o3d_spectral.registration_spectral_global(cloud, target, VOXEL)
+    assert result.ambiguity is not None and len(ambiguous(result)) == 1
+
+
+def test_the_mustard_bottle_turned_20_degrees_is_ambiguous():
+    """Its front and back nearly match: a half turn fits as well, whichever is returned."""
+    source = sample_model("mustard_bottle", 30000)
+    target, _ = turned(source, 20.0, (1.0, 2.0, 3.0))
+    result = o3d_spectral.registration_spectral_global(source, target, VOXEL)
+    assert result.ambiguity is not None and result.ambiguity > 90.0
+    assert len(ambiguous(result)) == 1
+
+
+def test_the_local_call_is_confident_where_it_is_right():
+    source = sample_model("power_drill", 6000)
+    target, T = turned(source, 10.0, (0.0, 0.0, 1.0), (0.01, 0.0, 0.0))
+    result = o3d_spectral.registration_spectral(source, target, VOXEL)
+    assert so3.rotation_angle(result.transformation[:3, :3].T @ T[:3, :3]) < np.deg2rad(1.0)
+    assert result.confidence > 0.9 and result.ambiguity is None and not result.warnings
