@@ -112,7 +112,9 @@ def test_demo_without_matplotlib_prints_the_numbers_and_a_hint(monkeypatch, caps
     assert main(["demo", "--object", "cracker_box", "--seed", "1", "--out", str(tmp_path)]) == 0
     out, err = capsys.readouterr()
     assert "rotation error" in out and f"wrote {tmp_path / 'result.json'}" in out
-    assert err.splitlines() == [
+    assert err.splitlines() == [  # a box: its half turn fits as well, said first
+        "o3d-spectral: WARNING: ambiguous: a pose 180 deg away fits as well (a symmetric "
+        "object?): result.ambiguity",
         "o3d-spectral: WARNING: no convergence plot: plotting needs the 'harness' extra "
         "(matplotlib is missing): pip install 'o3d-spectral[harness]'"
     ]
