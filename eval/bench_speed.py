@@ -123,10 +123,10 @@ def spectral_global(task: Task) -> tuple[np.ndarray, dict]:
     search = o3d_spectral.GlobalSearchOption(workers=1) if ONE_THREAD else None  # or default
     result = o3d_spectral.registration_spectral_global(task.source, task.target, task.voxel,
                                                        search=search)
-    warned = any(w.startswith("low fit") for w in result.warnings)
+    warned = any("may be wrong" in w for w in result.warnings)
     return np.asarray(result.transformation), {
         "confirmed": result.confirmed, "fitness": result.fitness, "fit": result.fit,
-        "confidence": result.confidence, "low_fit_warning": warned}
+        "confidence": result.confidence, "may_be_wrong_warning": warned}
 
 
 def harness_call(name: str):
@@ -136,7 +136,7 @@ def harness_call(name: str):
         transformation, _ = get_method(name)(task.source, task.target, task.voxel, task.seed)
         return transformation, {"confirmed": False, "fitness": float("nan"),
                                 "fit": float("nan"), "confidence": float("nan"),
-                                "low_fit_warning": False}
+                                "may_be_wrong_warning": False}
     return call
 
 

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-THRESHOLDS = (0.0, 0.005, 0.01, 0.02, 0.05, 0.1)
+#: Thresholds of the calibrated confidence (a probability; the warning fires under 0.5).
+THRESHOLDS = (0.0, 0.5, 0.7, 0.9, 0.95)
 
 
 def table(groups: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:

@@ -1,7 +1,8 @@
 """Table: how well each failure signal tells wrong poses from right ones.
 
 Reads the rows ``eval/bench_speed.py`` wrote (``instances.csv``: every group's global
-calls with their success, ``fitness``, ``fit`` and whether the low-fit warning fired)
+calls with their success, ``fitness``, ``fit`` and whether the may-be-wrong warning fired:
+``confidence`` under 0.5)
 and, for the warning and for Open3D's ``fitness`` under customary thresholds (0.3, 0.5,
 0.7), prints per group and overall: how many poses were wrong, the signal's precision
 (the share of flagged poses that were wrong) and recall (the share of wrong poses
@@ -35,7 +36,7 @@ def main() -> None:
     args = parser.parse_args()
     with open(args.instances, newline="") as handle:
         rows = [r for r in csv.DictReader(handle) if r["method"] == "spectral_global"]
-    signals = {"low-fit warning": lambda r: r["low_fit_warning"] == "True"}
+    signals = {"may-be-wrong warning": lambda r: r["may_be_wrong_warning"] == "True"}
     for threshold in FITNESS_THRESHOLDS:
         signals[f"fitness < {threshold}"] = (
             lambda r, t=threshold: float(r["fitness"]) < t)

@@ -214,7 +214,7 @@ def test_bench_speed(speed_run):
     rows = read_csv(out / "instances.csv")
     assert [r["group"] for r in rows] == ["full"] * len(rows)
     assert rows[0]["method"] == "spectral_global" and len({r["method"] for r in rows}) >= 2
-    assert {"seconds", "success", "fitness", "low_fit_warning", "confirmed"} <= rows[0].keys()
+    assert {"seconds", "success", "fitness", "may_be_wrong_warning", "confirmed"} <= rows[0].keys()
     summary = read_csv(out / "summary.csv")
     assert [(s["group"], s["n"]) for s in summary] == [("full", "1")]
     assert table_rows(printed, "full") and (out / "summary.md").is_file()
@@ -353,7 +353,7 @@ def test_failure_signal(speed_run, tmp_path):
     warning, both by fitness under 0.5 and 0.7: the table counts them."""
     rows = read_csv(speed_run[0] / "instances.csv")
     crafted = [rows[0] | {"group": "crafted", "success": "False", "fitness": fitness,
-                          "low_fit_warning": warned}
+                          "may_be_wrong_warning": warned}
                for fitness, warned in (("0.4", "True"), ("0.45", "False"))]
     path = tmp_path / "instances.csv"
     with open(path, "w", newline="") as handle:
@@ -362,7 +362,7 @@ def test_failure_signal(speed_run, tmp_path):
         writer.writerows(rows + crafted)
     printed = run("failure_signal.py", path, cwd=tmp_path)
     assert table_rows(printed, "crafted") == [
-        ["crafted", "2", "2", "low-fit warning", "1", "100%", "50%"],
+        ["crafted", "2", "2", "may-be-wrong warning", "1", "100%", "50%"],
         ["crafted", "2", "2", "fitness < 0.3", "0", "-", "0%"],
         ["crafted", "2", "2", "fitness < 0.5", "2", "100%", "100%"],
         ["crafted", "2", "2", "fitness < 0.7", "2", "100%", "100%"],
