@@ -28,6 +28,7 @@ BOP_YCBV = ROOT / "o3d_spectral" / "datasets" / "bop_ycbv"
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 #: Every script of ``eval/``, each run by the test ``test_<name>``.
 SCRIPTS = (
+    "bench_density.py",
     "bench_far.py",
     "bench_iteration.py",
     "bench_large.py",
@@ -124,6 +125,24 @@ def test_every_eval_script_has_a_tiny_run():
     assert {p.name for p in EVAL.glob("*.py")} == set(SCRIPTS)
     tests = {name for name in globals() if name.startswith("test_")}
     assert {f"test_{Path(s).stem}" for s in SCRIPTS} <= tests
+
+
+def test_bench_density(tmp_path):
+    printed = run("bench_density.py", "--limit", 1, "--scales", 1, 2, "--repeats", 1, "--out",
+                  tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "density.csv")
+    assert [(r["multiplier"], r["method"]) for r in rows] == [
+        (m, method) for m in ("1", "4") for method in ("spectral_global", "fpfh_ransac_lean")]
+    assert len({r["azimuth_deg"] for r in rows}) == 1  # the same pose at every density
+    assert int(rows[2]["target_points"]) > 3 * int(rows[0]["target_points"])
+    assert {"seconds", "success", "prepare_s", "polish_s"} <= rows[0].keys()
+    summary = read_csv(tmp_path / "summary.csv")
+    assert [(s["multiplier"], s["method"]) for s in summary] == [
+        ("1", "spectral_global"), ("4", "spectral_global"), ("1", "fpfh_ransac_lean"),
+        ("4", "fpfh_ransac_lean")]
+    assert float(summary[0]["median_ratio_to_1x"]) == 1.0
+    assert [row[:2] for row in table_rows(printed, "4x")][0] == ["4x", "spectral global"]
+    assert (tmp_path / "density.png").stat().st_size > 0
 
 
 def test_bench_far(tmp_path):
