@@ -25,7 +25,8 @@ of each method on the first instance warms up FFT plans and caches first.
 Writes to ``--out``: ``density.csv`` (one row per instance, scale and method: points,
 seconds, errors, success, stage seconds), ``summary.csv`` and ``summary.md`` (per points
 multiplier and method: median points, median seconds, the median over instances of the
-time's ratio to the same instance at 1x, success; spectral's median stage seconds) and
+time's ratio to the same instance at 1x, success; spectral's median stage seconds, and the
+median over instances of each stage's seconds added since 1x and of its ratio to 1x) and
 ``density.png`` (median seconds against the points multiplier, log-x, both methods, the
 ratios to 1x annotated). Prints the Markdown tables; progress goes to stderr.
 
@@ -175,29 +176,58 @@ def run_case(case: Case, repeats: int) -> list[dict]:
     return rows
 
 
-def ratios_to_first(rows: list[dict], method: str, column: str) -> dict[int, list[float]]:
-    """Per multiplier, each model's ``column`` over the same model's at the smallest
-    multiplier, for ``method``'s rows."""
+def to_first(rows: list[dict], method: str, column: str,
+             how: str = "ratio") -> dict[int, list[float]]:
+    """Per multiplier, each model's ``column`` against the same model's at the smallest
+    multiplier, for ``method``'s rows: their ratio (``how="ratio"``; NaN where the first
+    is 0) or their difference (``how="difference"``)."""
     picked = [r for r in rows if r["method"] == method]
     first = min(r["multiplier"] for r in picked)
     base = {r["model"]: r[column] for r in picked if r["multiplier"] == first}
     out: dict[int, list[float]] = {}
     for r in picked:
-        out.setdefault(r["multiplier"], []).append(r[column] / base[r["model"]])
+        value, reference = r[column], base[r["model"]]
+        if how == "difference":
+            out.setdefault(r["multiplier"], []).append(value - reference)
+        else:
+            out.setdefault(r["multiplier"], []).append(
+                value / reference if reference > 0 else float("nan"))
+    return out
+
+
+def median(values: list[float]) -> float:
+    """The median of the values that are not NaN; NaN if none is."""
+    kept = [v for v in values if not np.isnan(v)]
+    return float(np.median(kept)) if kept else float("nan")
+
+
+def stage_columns(rows: list[dict], method: str, multiplier: int) -> dict[str, float]:
+    """``method``'s stage figures at ``multiplier``, per stage: the median seconds, and the
+    median over the models of the seconds added to, and the ratio to, the first
+    multiplier's (all NaN for a method without stages)."""
+    picked = [r for r in rows if r["method"] == method and r["multiplier"] == multiplier]
+    out = {}
+    for stage in GLOBAL_STAGES:
+        column = f"{stage}_s"
+        out[f"{stage}_median_s"] = median([r[column] for r in picked])
+        out[f"{stage}_median_added_s"] = median(
+            to_first(rows, method, column, "difference")[multiplier])
+        out[f"{stage}_median_ratio_to_1x"] = median(to_first(rows, method, column)[multiplier])
     return out
 
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Per points multiplier and method: n, median points (source and target), median
-    seconds, median ratio of an instance's seconds to its first multiplier's, success
-    rate, and (spectral) the median seconds of each stage."""
+    seconds, the median and largest ratio of an instance's seconds to its first
+    multiplier's, success rate, and (spectral) the stage figures of
+    :func:`stage_columns`."""
     out = []
     for method in METHODS:
-        ratios = ratios_to_first(rows, method, "seconds")
+        ratios = to_first(rows, method, "seconds")
         for multiplier in sorted(ratios):
             picked = [r for r in rows
                       if r["method"] == method and r["multiplier"] == multiplier]
-            line = {
+            out.append({
                 "multiplier": multiplier, "scale": picked[0]["scale"], "method": method,
                 "n": len(picked),
                 "median_source_points": float(np.median([r["source_points"] for r in picked])),
@@ -206,15 +236,15 @@ def summarise(rows: list[dict]) -> list[dict]:
                 "median_ratio_to_1x": float(np.median(ratios[multiplier])),
                 "max_ratio_to_1x": float(np.max(ratios[multiplier])),
                 "success": float(np.mean([r["success"] for r in picked])),
-            }
-            for stage in GLOBAL_STAGES:
-                line[f"{stage}_median_s"] = float(np.median([r[f"{stage}_s"] for r in picked]))
-            out.append(line)
+                **stage_columns(rows, method, multiplier),
+            })
     return out
 
 
 def markdown(summary: list[dict]) -> str:
-    """The summary as two Markdown tables: both methods, then spectral's stages."""
+    """The summary as two Markdown tables: both methods, then spectral's stages (median
+    seconds per multiplier; at the last, the median over the models of the seconds added
+    since the first multiplier and of the ratio to it)."""
     lines = ["| points | method | n | median points (source / target) | median s "
              "| median ratio to 1x | max ratio to 1x | success |", "|" + " --- |" * 8]
     for s in summary:
@@ -225,10 +255,15 @@ def markdown(summary: list[dict]) -> str:
             f"| {s['max_ratio_to_1x']:.2f} | {100 * s['success']:.0f}% |")
     lines += ["", "| points | " + " | ".join(f"{stage} s" for stage in GLOBAL_STAGES) + " |",
               "|" + " --- |" * (len(GLOBAL_STAGES) + 1)]
-    for s in summary:
-        if s["method"] == SPECTRAL:
-            cells = " | ".join(f"{s[f'{stage}_median_s']:.3f}" for stage in GLOBAL_STAGES)
-            lines.append(f"| {s['multiplier']}x | {cells} |")
+    spectral = [s for s in summary if s["method"] == SPECTRAL]
+    for s in spectral:
+        cells = " | ".join(f"{s[f'{stage}_median_s']:.3f}" for stage in GLOBAL_STAGES)
+        lines.append(f"| {s['multiplier']}x | {cells} |")
+    last = spectral[-1]
+    for key, label, digits in (("added_s", "s added", 3), ("ratio_to_1x", "ratio", 2)):
+        cells = " | ".join("-" if np.isnan(v := last[f"{stage}_median_{key}"]) else
+                           f"{v:.{digits}f}" for stage in GLOBAL_STAGES)
+        lines.append(f"| {last['multiplier']}x vs 1x, median {label} | {cells} |")
     return "\n".join(lines)
 
 
