@@ -287,6 +287,54 @@ def confidence() -> str:
     ])
 
 
+#: ``eval/bench_density.py``'s methods, in the docs' order, and how the docs name them.
+DENSITY_METHODS = {"spectral_global": "spectral", "fpfh_ransac_lean": "lean FPFH-RANSAC"}
+#: The stages of ``registration_spectral_global`` in ``eval/bench_density.py``'s summary.
+DENSITY_STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish")
+
+
+def density() -> str:
+    """Time against raw density at a fixed voxel: both methods, then spectral's stages."""
+    rows = {(int(r["multiplier"]), r["method"]): r for r in read_csv("density")}
+    multipliers = sorted({m for m, _ in rows})
+    lines = []
+    for m in multipliers:
+        first = rows[m, "spectral_global"]
+        cells = [f"{m}x", first["n"],
+                 f"{float(first['median_source_points']):.0f} / "
+                 f"{float(first['median_target_points']):.0f}"]
+        for method in DENSITY_METHODS:
+            r = rows[m, method]
+            cells += [f"{float(r['median_s']):.3f}", f"{float(r['median_ratio_to_1x']):.2f}",
+                      f"{100 * float(r['success']):.0f}%"]
+        lines.append(cells)
+    header = ["points", "n", "median points (source / target)"]
+    for name in DENSITY_METHODS.values():
+        header += [f"{name} median s", f"{name} ratio to 1x", f"{name} success"]
+    def cells(row: dict[str, str], key: str, digits: int) -> list[str]:
+        values = [float(row[f"{s}_median_{key}"]) for s in DENSITY_STAGES]
+        return ["-" if v != v else f"{v:.{digits}f}" for v in values]  # v != v: NaN
+
+    stages = [[f"{m}x", *cells(rows[m, "spectral_global"], "s", 3)] for m in multipliers]
+    low, high = multipliers[0], multipliers[-1]
+    last = rows[high, "spectral_global"]
+    stages += [[f"{high}x vs {low}x: median s added", *cells(last, "added_s", 3)],
+               [f"{high}x vs {low}x: median ratio", *cells(last, "ratio_to_1x", 2)]]
+    return "\n".join([
+        table(header, lines),
+        "",
+        "Spectral's stages (`result.stage_times`; a skipped stage counts 0 s): median "
+        f"seconds over the instances; then, over the instances, the median of the seconds "
+        f"each stage added from {low}x to {high}x and of its ratio (- where it ran at no "
+        f"instance at {low}x):",
+        "",
+        table(["points", *DENSITY_STAGES], stages),
+        "",
+        provenance("density") + " One thread per call, 2 cores shared with other jobs: "
+        "times are indicative; every row in `docs/data/density.csv`.",
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -298,6 +346,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "pairs": pairs,
     "method-failures": method_failures,
     "confidence": confidence,
+    "density": density,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
