@@ -4,7 +4,9 @@ and how well the may-be-wrong warning and Open3D's ``fitness`` tell wrong poses 
 Every instance is registered by ``o3d_spectral.registration_spectral_global`` (defaults)
 twice: at the hand-chosen voxel size (the suites': 8 mm, as ``o3d-spectral eval`` and the
 benchmarks run them; the real groups': ``harness.real.VOXEL_SIZES``) and at
-``o3d_spectral.suggest_voxel_size(source, target)`` (once when the two agree).
+``o3d_spectral.suggest_voxel_size(source, target)`` (once when the two agree); with
+``--trial`` a third time by ``o3d_spectral.voxel_trial`` (the rule's size and the others of
+its ladder, the most confident kept; its time is the whole trial's).
 
 Groups: the suites (``--suites DIR`` holding ``full``, ``partial``, ``occluded``,
 ``cluttered``), instances ``--start`` to ``--start + --limit``; the real groups
@@ -27,7 +29,7 @@ Tables printed (Markdown), and written with the rows (``rows.csv``) to ``--out``
 ``--table rows.csv`` prints the tables of earlier rows without registering anything.
 
 Usage: python eval/voxel_advice.py --suites SUITES --out out/voxel_advice
-       [--start 0] [--limit 48] [--rotations 2] [--groups full dragon_24 ...]
+       [--start 0] [--limit 48] [--rotations 2] [--groups full dragon_24 ...] [--trial]
 """
 
 from __future__ import annotations
@@ -76,7 +78,21 @@ def register(source, target, voxel: float, score) -> dict:
 
     began = time.perf_counter()
     result = o3d_spectral.registration_spectral_global(source, target, voxel)
-    seconds = time.perf_counter() - began
+    return scored(result, voxel, time.perf_counter() - began, score)
+
+
+def by_trial(source, target, score) -> dict:
+    """``o3d_spectral.voxel_trial`` (the sizes of its ladder, the most confident kept):
+    the kept call's errors, success and signals, its size and the trial's whole time."""
+    import o3d_spectral
+
+    began = time.perf_counter()
+    trial = o3d_spectral.voxel_trial(source, target)
+    return scored(trial.result, trial.voxel_size, time.perf_counter() - began, score)
+
+
+def scored(result, voxel: float, seconds: float, score) -> dict:
+    """The row of a registration ``result`` at ``voxel`` (metres) that took ``seconds``."""
     rotation, translation, success = score(np.asarray(result.transformation))
     warned = any(WARNING_TEXT in w for w in result.warnings)
     if warned != may_be_wrong(result.confidence):  # the table recomputes it so
@@ -107,7 +123,10 @@ def run(args: argparse.Namespace, csv_path: Path) -> list[dict]:
         first = register(source, target, hand, score)
         second = first if np.isclose(suggested, hand, rtol=1e-9, atol=0.0) else register(
             source, target, suggested, score)
-        for choice, row in (("hand", first), ("suggested", second)):
+        chosen = [("hand", first), ("suggested", second)]
+        if args.trial:
+            chosen.append(("trial", by_trial(source, target, score)))
+        for choice, row in chosen:
             rows.append({"group": group, "instance": name, "choice": choice,
                          "advice_s": advice_s} | row)
             if writer is None:
@@ -115,9 +134,9 @@ def run(args: argparse.Namespace, csv_path: Path) -> list[dict]:
                 writer.writeheader()
             writer.writerow(rows[-1])
         handle.flush()
-        print(f"{name}: hand {hand * 1e3:.2f} mm {'ok' if first['success'] else 'FAIL'}, "
-              f"suggested {suggested * 1e3:.2f} mm {'ok' if second['success'] else 'FAIL'}",
-              file=sys.stderr, flush=True)
+        print(f"{name}: " + ", ".join(
+            f"{choice} {row['voxel_m'] * 1e3:.2f} mm {'ok' if row['success'] else 'FAIL'}"
+            for choice, row in chosen), file=sys.stderr, flush=True)
     handle.close()
     return rows
 
@@ -127,23 +146,29 @@ def _true(value) -> bool:
 
 
 def advice_table(rows: list[dict]) -> str:
-    lines = ["| group | n | hand mm | suggested mm: median (range) | hand success "
-             "| suggested success | difference, points | median s, hand / suggested |",
-             "|" + " --- |" * 8]
+    """Per group: the hand-chosen size's success; the suggested size's (and, when the run
+    has them, the trial's: ``--trial``) success, difference in points and median time."""
+    choices = [c for c in ("suggested", "trial") if any(r["choice"] == c for r in rows)]
+    head = ["group", "n", "hand mm", "suggested mm: median (range)", "hand success"]
+    for choice in choices:
+        head += [f"{choice} success", "difference, points"]
+    head.append("median s, " + " / ".join(["hand", *choices]))
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     groups = list(dict.fromkeys(r["group"] for r in rows))
     for group in [*groups, "all"]:
         mine = [r for r in rows if group in ("all", r["group"])]
-        hand = [r for r in mine if r["choice"] == "hand"]
-        suggested = [r for r in mine if r["choice"] == "suggested"]
-        sizes = np.array([float(r["voxel_m"]) for r in suggested]) * 1e3
-        hand_sizes = sorted({round(float(r["voxel_m"]) * 1e3, 2) for r in hand})
-        a = 100 * np.mean([_true(r["success"]) for r in hand])
-        b = 100 * np.mean([_true(r["success"]) for r in suggested])
-        lines.append(f"| {group} | {len(hand)} | {', '.join(f'{s:g}' for s in hand_sizes)} "
-                     f"| {np.median(sizes):.1f} ({sizes.min():.1f}-{sizes.max():.1f}) "
-                     f"| {a:.1f}% | {b:.1f}% | {b - a:+.1f} "
-                     f"| {np.median([float(r['seconds']) for r in hand]):.2f} / "
-                     f"{np.median([float(r['seconds']) for r in suggested]):.2f} |")
+        picked = {c: [r for r in mine if r["choice"] == c] for c in ("hand", *choices)}
+        sizes = np.array([float(r["voxel_m"]) for r in picked["suggested"]]) * 1e3
+        hand_sizes = sorted({round(float(r["voxel_m"]) * 1e3, 2) for r in picked["hand"]})
+        a = 100 * np.mean([_true(r["success"]) for r in picked["hand"]])
+        cells = [group, str(len(picked["hand"])), ", ".join(f"{s:g}" for s in hand_sizes),
+                 f"{np.median(sizes):.1f} ({sizes.min():.1f}-{sizes.max():.1f})", f"{a:.1f}%"]
+        for choice in choices:
+            b = 100 * np.mean([_true(r["success"]) for r in picked[choice]])
+            cells += [f"{b:.1f}%", f"{b - a:+.1f}"]
+        cells.append(" / ".join(f"{np.median([float(r['seconds']) for r in picked[c]]):.2f}"
+                                for c in ("hand", *choices)))
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -186,6 +211,8 @@ def main() -> None:
     parser.add_argument("--start", type=int, default=0, help="first suite instance")
     parser.add_argument("--limit", type=int, default=48, help="suite instances per suite")
     parser.add_argument("--rotations", type=int, default=2, help="rotations per real case")
+    parser.add_argument("--trial", action="store_true",
+                        help="also register by o3d_spectral.voxel_trial (its ladder of sizes)")
     parser.add_argument("--groups", nargs="+", choices=(*CONDITIONS, *real.GROUPS),
                         default=[*CONDITIONS, *real.GROUPS])
     parser.add_argument("--table", type=Path, metavar="ROWS_CSV",

@@ -43,6 +43,7 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
     from .result import SpectralRegistrationResult
     from .stepper import Evaluation, MovingCloud, SpectralStepper
     from .voxel import suggest_voxel_size
+    from .voxel_by_trial import VoxelTrial, voxel_trial
 
 __all__ = [
     "registration_spectral",
@@ -51,6 +52,8 @@ __all__ = [
     "prepare",
     "prepare_target",
     "suggest_voxel_size",
+    "voxel_trial",
+    "VoxelTrial",
     "PreparedSource",
     "PreparedTarget",
     "SpectralRegistrationOption",
@@ -83,6 +86,8 @@ __getattr__ = lazy_attributes(
         "prepare_target": "prepared_target",
         "PreparedTarget": "prepared_target",
         "suggest_voxel_size": "voxel",
+        "voxel_trial": "voxel_by_trial",
+        "VoxelTrial": "voxel_by_trial",
         "PreparedSource": "prepared",
         "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",

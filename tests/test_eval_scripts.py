@@ -22,6 +22,8 @@ import numpy as np
 import open3d as o3d
 import pytest
 
+from o3d_spectral.voxel_by_trial import VOXEL_LADDER
+
 ROOT = Path(__file__).resolve().parents[1]
 EVAL = ROOT / "eval"
 BOP_YCBV = ROOT / "o3d_spectral" / "datasets" / "bop_ycbv"
@@ -424,3 +426,15 @@ def test_voxel_advice(suites, tmp_path):
     assert printed == tables and len(table_rows(tables, "full")) == 3
     shutil.copyfile(out / "rows.csv", tmp_path / "rows.csv")
     assert run("voxel_advice.py", "--table", tmp_path / "rows.csv", cwd=tmp_path) == tables
+
+
+def test_voxel_advice_by_trial(suites, tmp_path):
+    out = tmp_path / "out"
+    printed = run("voxel_advice.py", "--suites", suites, "--groups", "full", "--limit", 1,
+                  "--trial", "--out", out, cwd=tmp_path)
+    rows = read_csv(out / "rows.csv")
+    assert [r["choice"] for r in rows] == ["hand", "suggested", "trial"]
+    factors = [float(rows[2]["voxel_m"]) / float(rows[1]["voxel_m"])]
+    assert factors[0] == pytest.approx(min(VOXEL_LADDER,
+                                           key=lambda f: abs(f - factors[0])))
+    assert "trial success" in printed.splitlines()[2]

@@ -125,20 +125,29 @@ def test_the_suggested_size_registers(drill):
     assert rotation_error(result.transformation, T) < 2.0
 
 
-def test_register_voxel_size_auto_uses_and_prints_the_suggestion(drill, tmp_path, capsys):
+def test_register_voxel_size_rule_uses_and_prints_the_suggestion(drill, tmp_path, capsys):
     source, target, T = drill
     paths = [tmp_path / "source.ply", tmp_path / "target.ply"]
     for path, cloud in zip(paths, (source, target), strict=True):
         o3d.io.write_point_cloud(str(path), cloud)
     read = [o3d.io.read_point_cloud(str(path)) for path in paths]
-    assert main(["register", *map(str, paths), "--voxel-size", "auto", "--json"]) == 0
+    assert main(["register", *map(str, paths), "--voxel-size", "rule", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["voxel_size"] == pytest.approx(o3d_spectral.suggest_voxel_size(*read))
     assert summary["max_correspondence_distance"] == pytest.approx(summary["voxel_size"])
     assert rotation_error(np.array(summary["transformation"]), T) < 2.0
+    assert main(["-v", "register", *map(str, paths), "--voxel-size", "RULE"]) == 0
+    out, err = capsys.readouterr()
+    assert "--voxel-size rule:" in err and "(rule)" in out
+    assert main(["register", *map(str, paths), "--voxel-size", "auto", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    trial = o3d_spectral.voxel_trial(*read)
+    assert summary["voxel_size"] == pytest.approx(trial.voxel_size)
+    np.testing.assert_allclose(summary["transformation"], trial.result.transformation,
+                               atol=1e-9)
     assert main(["-v", "register", *map(str, paths), "--voxel-size", "AUTO"]) == 0
     out, err = capsys.readouterr()
-    assert "--voxel-size auto:" in err and "(auto)" in out
+    assert "--voxel-size auto:" in err and "tried" in err and "(auto)" in out
     assert main(["register", *map(str, paths), "--voxel-size", "0.01", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["voxel_size"] == 0.01
     assert main(["register", *map(str, paths), "--voxel-size", "automatic"]) == 2

@@ -36,9 +36,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("source", type=Path, help="source cloud (any file Open3D reads)")
     parser.add_argument("target", type=Path, help="target cloud (any file Open3D reads)")
     parser.add_argument(
-        "--voxel-size", type=_voxel_size, required=True, metavar="METRES|auto",
-        help="voxel edge, metres; 'auto': chosen from the clouds' point spacing and extent "
-        "(o3d_spectral.suggest_voxel_size; logged, and in the --json output)",
+        "--voxel-size", type=_voxel_size, required=True, metavar="METRES|auto|rule",
+        help="voxel edge, metres; 'rule': read off the clouds' point spacing and extent "
+        "(o3d_spectral.suggest_voxel_size), one registration; 'auto': the rule's size and, "
+        "unless that pose is confidently right, 1.4 and 0.75 times it, the most confident "
+        "kept (o3d_spectral.voxel_trial: up to three registrations; with --init, the "
+        "rule's); the size is logged and in the --json output",
     )
     parser.add_argument(
         "--init", type=Path, metavar="FILE",
@@ -76,14 +79,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _voxel_size(text: str) -> float | str:
-    """``--voxel-size``: "auto", or a number (checked as a voxel size before any file is
-    read: a NaN or a negative number is refused naming the option)."""
-    if text.strip().lower() == "auto":
-        return "auto"
+    """``--voxel-size``: "auto", "rule", or a number (checked as a voxel size before any
+    file is read: a NaN or a negative number is refused naming the option)."""
+    if text.strip().lower() in ("auto", "rule"):
+        return text.strip().lower()
     try:
         return float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"a number of metres or 'auto', got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"a number of metres, 'auto' or 'rule', got {text!r}") from None
 
 
 @contextlib.contextmanager
@@ -276,7 +280,7 @@ def run(args: argparse.Namespace) -> int:
     from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import UsageError, results
 
-    auto = args.voxel_size == "auto"
+    auto = args.voxel_size in ("auto", "rule")
     if not auto:
         try:
             check_voxel_size(args.voxel_size, "--voxel-size")  # before reading any file
@@ -287,25 +291,11 @@ def run(args: argparse.Namespace) -> int:
     init = _read_init(args.init) if args.init else None
     source, target = (_read_logged(path, args.drop_nan) for path in (args.source, args.target))
     voxel_size = o3d_spectral.suggest_voxel_size(source, target) if auto else args.voxel_size
-    if auto:
-        log.info("--voxel-size auto: %.4g m (from the clouds' point spacing and extent)",
-                 voxel_size)
-    option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
-    criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
-    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
-                                     target_viewpoint=_viewpoint(args.target_viewpoint),
-                                     source_camera_location=args.source_camera_location)
-    log.info("registering %s onto %s at %g m voxels, bandwidth %d: %s", args.source.name,
-             args.target.name, voxel_size, args.bandwidth,
-             "the law from --init" if init is not None else "global search over SO(3)")
-    if init is not None:
-        result = o3d_spectral.registration_spectral(
-            source, target, voxel_size, init, option, criteria, cloud=cloud
-        )
-    else:
-        result = o3d_spectral.registration_spectral_global(
-            source, target, voxel_size, option, criteria, cloud=cloud
-        )
+    trial = args.voxel_size == "auto" and init is None
+    if auto and not trial:
+        log.info("--voxel-size %s: %.4g m (from the clouds' point spacing and extent)",
+                 args.voxel_size, voxel_size)
+    result, voxel_size = _registered(args, source, target, init, voxel_size, trial)
     if not np.all(np.isfinite(result.transformation)):  # never print a pose that is not one
         raise FloatingPointError("the registration produced a non-finite transformation")
     log.info("registered in %.2f s: fitness %.3f, inlier rmse %.4f m, %d iterations",
@@ -324,6 +314,45 @@ def run(args: argparse.Namespace) -> int:
             f"fit {result.fit:.4f}  inlier_rmse {result.inlier_rmse:.6f} m  "
             f"(at {result.max_correspondence_distance:.4g} m)  converged {result.converged}  "
             f"iterations {result.num_iterations}  time {result.run_time:.3f} s"
-            + (f"  voxel_size {voxel_size:.4g} m (auto)" if auto else ""), file=out,
+            + (f"  voxel_size {voxel_size:.4g} m ({args.voxel_size})" if auto else ""),
+            file=out,
         )
     return 0
+
+
+def _registered(
+    args: argparse.Namespace, source, target, init: np.ndarray | None, voxel_size: float,
+    trial: bool,
+):
+    """The registration the arguments ask for, and the voxel size it ran at (metres):
+    the law from ``init``; the global search at ``voxel_size``; or, with ``trial``, the
+    global search at the sizes of :func:`o3d_spectral.voxel_trial`, the most confident
+    kept."""
+    import o3d_spectral
+
+    option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
+    criteria = o3d_spectral.SpectralConvergenceCriteria(max_iteration=args.max_iteration)
+    cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
+                                     target_viewpoint=_viewpoint(args.target_viewpoint),
+                                     source_camera_location=args.source_camera_location)
+    log.info("registering %s onto %s at %g m voxels%s, bandwidth %d: %s", args.source.name,
+             args.target.name, voxel_size, " first (voxel size by trial)" if trial else "",
+             args.bandwidth,
+             "the law from --init" if init is not None else "global search over SO(3)")
+    if init is not None:
+        return o3d_spectral.registration_spectral(
+            source, target, voxel_size, init, option, criteria, cloud=cloud
+        ), voxel_size
+    if trial:
+        began = time.perf_counter()
+        chosen = o3d_spectral.voxel_trial(source, target, option=option, criteria=criteria,
+                                          cloud=cloud)
+        result, voxel_size = chosen.result, chosen.voxel_size
+        log.info("--voxel-size auto: %.4g m, confidence %.3f (tried %s; %.2f s in all)",
+                 voxel_size, result.confidence,
+                 ", ".join(f"{v:.4g} m: {c:.3f}" for v, c in chosen.tried),
+                 time.perf_counter() - began)
+        return result, voxel_size
+    return o3d_spectral.registration_spectral_global(
+        source, target, voxel_size, option, criteria, cloud=cloud
+    ), voxel_size
