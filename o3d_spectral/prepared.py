@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._checks import check_instance, check_number, check_voxel_span
 from .io.cloud import CloudArrays, PreparedCloud, as_arrays
 from .io.cloud import prepare as prepare_arrays
+from .io.density import read_at_voxels
 from .io.rows import largest_side
 from .options import CloudOption, SpectralRegistrationOption
 
@@ -151,8 +152,9 @@ def prepare(
     option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
     arrays = as_arrays(source, "source")
     camera = cloud.source_camera
+    read, _ = read_at_voxels(arrays, float(voxel_size))  # as the calls read it
     prepared = prepared_cloud(
-        arrays, float(voxel_size), egi_voxel_size=option.egi_voxel_size,
+        read, float(voxel_size), egi_voxel_size=option.egi_voxel_size,
         normal_radius=cloud.normal_radius, camera_location=camera, origin=np.zeros(3),
         name="source",
     )

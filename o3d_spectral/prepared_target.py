@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from . import centring
 from ._checks import check_instance, check_voxel_size
 from .io.cloud import CloudArrays, as_arrays
+from .io.density import read_at_voxels
 from .options import CloudOption, SpectralRegistrationOption
 from .prepared import check_prepared_with
 from .stepper import SpectralStepper
@@ -105,10 +106,11 @@ def prepare_target(
     check_instance("cloud", cloud, CloudOption)
     option, cloud = option or SpectralRegistrationOption(), cloud or CloudOption()
     arrays = as_arrays(target, "target")
-    c = centring.offset(arrays)
-    centred, centred_cloud, origin = arrays, cloud, None
+    read, _ = read_at_voxels(arrays, voxel_size)  # as the calls read it
+    c = centring.offset(read)
+    centred, centred_cloud, origin = read, cloud, None
     if c is not None:  # as the calls do: a frame centred on the target
-        centred = centring.centred_arrays(arrays, c)
+        centred = centring.centred_arrays(read, c)
         centred_cloud, origin = centring.centred_option(cloud, c), -c
     stepper = SpectralStepper(centred, voxel_size, option=option, cloud=centred_cloud,
                               frame_origin=origin)

@@ -15,15 +15,15 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from .io.cloud import extent
-from .io.rows import bounds, lengths
+from .io.density import first_per_cell
+from .io.rows import lengths
 from .options import RefinementOption
 from .parallel import one_open3d_thread
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
     "polish_within_reach", "convergence", "REACH",
-    "representatives", "SCORE_CELL", "DENSE_PER_VOXEL", "with_normals", "first_per_cell",
-    "thinned",
+    "with_normals", "thinned",
 ]
 
 #: The polished pose is rejected when it keeps at most this share of the unpolished
@@ -40,51 +40,11 @@ TUTORIAL_DISTANCE = 0.4
 #: point by as much is polished again on the whole source.
 REACH = 1.5
 
-#: :func:`representatives`: a cloud with over this many points per occupied voxel is
-#: polished and scored one point per cell of :data:`SCORE_CELL` voxels.
-DENSE_PER_VOXEL = 64
-#: The cell (voxels) of a dense cloud's points kept: the resolution at which the method
-#: reads the surface (its normals are estimated a quarter voxel apart).
-SCORE_CELL = 0.25
-
-
-def representatives(
-    points: NDArray[np.float64], voxel_size: float, voxels: int
-) -> NDArray[np.int64]:
-    """Indices (ascending) of the points (N, 3) the polish and the scoring use: all of
-    them, or, for a cloud of over :data:`DENSE_PER_VOXEL` points per occupied voxel
-    (``voxels`` of ``voxel_size`` metres), the first point in each cell of
-    :data:`SCORE_CELL` voxels. Actual points of the cloud (not means), so that indices
-    into the subset map back to the cloud.
-
-    The polish and the scoring then cost what the voxels cost, not what the raw cloud
-    costs (2M points on a 0.5 m sphere at 1 cm voxels: 250 per voxel, an ICP of a minute
-    on them all). Ordinary clouds keep every point: one per quarter-voxel cell would cost
-    the dragon scans (25 points per voxel) 0.01-0.06 degree.
-    """
-    if len(points) <= DENSE_PER_VOXEL * voxels:
-        return np.arange(len(points))
-    return first_per_cell(points, SCORE_CELL * voxel_size)
-
-
-def first_per_cell(points: NDArray[np.float64], cell: float) -> NDArray[np.int64]:
-    """Indices (ascending) of the first of the points (N, 3) in each cube of ``cell``
-    metres: actual points, so that indices into the subset map back to the cloud."""
-    if len(points) == 0:
-        return np.zeros(0, dtype=np.int64)
-    keys = np.floor((points - bounds(points)[0]) / cell).astype(np.int64)
-    span = bounds(keys)[1] + 1
-    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one int64 per cell
-        flat = keys[:, 0] + span[0] * (keys[:, 1] + span[1] * keys[:, 2])
-        first = np.unique(flat, return_index=True)[1]
-    else:  # a cloud over ~4e6 cells a side: rows
-        first = np.unique(keys, axis=0, return_index=True)[1]
-    return np.sort(first)
-
 
 def thinned(cloud: o3d.geometry.PointCloud, cell: float) -> o3d.geometry.PointCloud:
     """``cloud`` (normals kept) with its first point in each cube of ``cell`` metres
-    (:func:`first_per_cell`); ``cloud`` itself where no two points share a cell."""
+    (:func:`o3d_spectral.io.density.first_per_cell`); ``cloud`` itself where no two points
+    share a cell."""
     keep = first_per_cell(np.asarray(cloud.points), cell)
     return cloud if len(keep) == len(cloud.points) else cloud.select_by_index(keep)
 

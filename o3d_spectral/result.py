@@ -19,11 +19,11 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     ``transformation``, ``fitness``, ``inlier_rmse`` and ``correspondence_set`` mean what
     they mean for Open3D's own methods: they come from
     ``open3d.pipelines.registration.evaluate_registration`` at
-    :attr:`max_correspondence_distance`, measured on the clouds' points: all of them, or,
-    for a cloud of over 64 points per occupied voxel, the first point in each cell of a
-    quarter voxel (:func:`o3d_spectral.refinement.representatives`; the polish uses the
-    same points). ``fitness`` is the share of those source points with a target point
-    within the distance; ``correspondence_set`` holds their indices in the caller's
+    :attr:`max_correspondence_distance`, measured on the points the call read: all of a
+    cloud's, or, for a dense cloud (over 64 points per occupied voxel), the first point in
+    each cell of a quarter voxel (:mod:`o3d_spectral.io.density`; every stage of the call
+    reads the same points). ``fitness`` is the share of those source points with a target
+    point within the distance; ``correspondence_set`` holds their indices in the caller's
     clouds.
 
     Attributes

@@ -21,6 +21,7 @@ from ._checks import check_instance, check_number, check_transformation, check_v
 from .confidence_model import confidence
 from .diagnostics import registration_warnings
 from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
+from .io.density import read_at_voxels
 from .io.units import check_same_units
 from .law import Climb, climb
 from .options import (
@@ -33,7 +34,7 @@ from .options import (
 from .pose_evidence import pose_evidence
 from .prepared import PreparedSource
 from .prepared_target import PreparedTarget
-from .refinement import near_pose, refine, representatives, with_normals
+from .refinement import near_pose, refine, with_normals
 from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
 from .stepper import MovingCloud, SpectralStepper
@@ -63,6 +64,10 @@ class Run:
     start: float
     offset: NDArray[np.float64] | None  # where the clouds were centred (centring module)
     situation: Situation
+    #: Indices in the caller's clouds of the points read (io.density: a dense cloud's
+    #: one per quarter-voxel cell), or None where every point is read.
+    source_index: NDArray[np.int64] | None = None
+    target_index: NDArray[np.int64] | None = None
 
     @property
     def fixed_normals(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -114,6 +119,9 @@ def start(
         target = fixed.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     check_same_units(source.points, target.points)  # 50x apart: other units, or a scene to crop
+    # a dense cloud read one point per quarter-voxel cell, as prepare(_target) reads it
+    (source, source_index), (target, target_index) = (read_at_voxels(c, voxel_size)
+                                                      for c in (source, target))
     c, origin = centring.offset(target), None
     prepared = None if ready is None else ready.cloud
     if c is not None:  # far from the origin: register in a frame centred on the target
@@ -126,7 +134,7 @@ def start(
     moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
     criteria = criteria or SpectralConvergenceCriteria()
     return Run(source, target, stepper, moving, init, criteria, start, c,
-               situation(stepper, moving))
+               situation(stepper, moving), source_index, target_index)
 
 
 def finish(
@@ -145,13 +153,7 @@ def finish(
         if run.offset is not None:
             result.target_viewpoint += run.offset
     voxel_size = run.stepper.voxel_size
-    # a dense cloud is polished and scored at the cost of its voxels (2M points: seconds,
-    # not a minute); the indices map back to the caller's points
-    kept = [representatives(c.points, voxel_size, voxels)
-            for c, voxels in ((run.source, len(run.moving.points)),
-                              (run.target, len(run.stepper.target_points)))]
-    source, target = (to_legacy(subset(c, k)) for c, k in zip((run.source, run.target), kept,
-                                                                 strict=True))
+    source, target = to_legacy(run.source), to_legacy(run.target)
     if refinement is not None:
         transformation = refined(run, source, target, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
@@ -170,8 +172,10 @@ def finish(
             source, near, distance, transformation
         )
         pairs = np.asarray(evaluation.correspondence_set)
-        pairs[:, 0] = kept[0][pairs[:, 0]]  # back to the caller's source indices
-        pairs[:, 1] = kept[1][indices[pairs[:, 1]]]  # and the whole target's
+        pairs[:, 1] = indices[pairs[:, 1]]  # the whole target's
+        for column, index in enumerate((run.source_index, run.target_index)):
+            if index is not None:  # back to the caller's points
+                pairs[:, column] = index[pairs[:, column]]
         result.fitness = evaluation.fitness
         result.inlier_rmse = evaluation.inlier_rmse
         result.correspondence_set = o3d.utility.Vector2iVector(pairs)
@@ -212,14 +216,6 @@ def _measured(
         sensor=run.stepper.viewpoint, two_sided=run.moving.reading.two_sided)
     result.pose_evidence = evidence
     result.confidence = confidence(evidence)
-
-
-def subset(arrays: CloudArrays, keep: NDArray[np.int64]) -> CloudArrays:
-    """The points (and normals) of ``arrays`` at ``keep``; ``arrays`` itself if all."""
-    if len(keep) == len(arrays.points):
-        return arrays
-    normals = None if arrays.normals is None else arrays.normals[keep]
-    return CloudArrays(arrays.points[keep], normals)
 
 
 def refined(
