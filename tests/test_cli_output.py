@@ -241,3 +241,14 @@ def test_make_suite_draws_no_progress_frames_in_a_pipe(tmp_path, capsys):
     assert main(["make-suite", "full", "--n", "2", "--out", str(tmp_path / "s")]) == 0
     out, err = capsys.readouterr()
     assert out.startswith("wrote 2 full instances") and "\r" not in err and "inst" not in err
+
+
+def test_make_suite_refuses_a_file_as_its_folder(tmp_path, capsys):
+    """--out naming an existing file is a usage error (exit 2), one line naming --out,
+    and the file is left as it was."""
+    taken = tmp_path / "taken.txt"
+    taken.write_text("kept\n")
+    assert main(["make-suite", "full", "--n", "1", "--out", str(taken)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"o3d-spectral make-suite: error: --out {taken}: a file, not a folder\n"
+    assert taken.read_text() == "kept\n"

@@ -65,11 +65,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def make_suite_command(args: argparse.Namespace) -> int:
     import time
+    from pathlib import Path
 
     import numpy as np
 
     from o3d_spectral._extras import require_modules
+    from o3d_spectral.cli import UsageError
 
+    if Path(args.out).exists() and not Path(args.out).is_dir():  # before any work
+        raise UsageError(f"--out {args.out}: a file, not a folder")
     require_modules("this command", "tqdm")
     from o3d_spectral.cli import results, show_progress
     from o3d_spectral.synthetic.instance import SceneOptions
