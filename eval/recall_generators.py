@@ -17,7 +17,8 @@ records:
 
 * per generator (``egi``: the EGI correlation's peaks; ``shell``: the shells' peaks;
   ``sweep``: the 16 best of the sweep of SO(3)), in the generator's own order (its score):
-  the index of the first right candidate, hence recall@k for k = 1, 4, 16 and all;
+  the index of the first right candidate, hence recall@k for k = 1, 4, 16 and all, and
+  the error of its nearest candidate;
 * after the placement ranking (by the placed peak height; the sweep's candidates ranked
   with the others, as the search ranks them after a sweep; between two scans only the
   best on a coarse grid are placed): the rank of the generator's first right candidate;
@@ -290,6 +291,7 @@ def analyse(spec: Spec) -> dict:
     for g in GENERATORS:
         row[f"{g}_count"] = len(errors[g])
         row[f"{g}_first_right"] = first_right(errors[g])
+        row[f"{g}_nearest_deg"] = min(errors[g], default=float("nan"))
         row[f"{g}_placed_rank"] = ranks[g]
     row["candidates_right"] = any(first_right(errors[g]) is not None for g in used)
     row["placed_right"] = any(right(pair, rotation4(h.rotation))
@@ -331,6 +333,8 @@ def generator_summary(rows: list[dict]) -> list[dict]:
             placed = [r[f"{g}_placed_rank"] for r in applied if r[f"{g}_placed_rank"]]
             line["placed"] = share([r[f"{g}_placed_rank"] is not None for r in applied])
             line["median_placed_rank"] = float(np.median(placed)) if placed else float("nan")
+            nearest = [float(r[f"{g}_nearest_deg"]) for r in applied]
+            line["median_nearest_deg"] = float(np.median(nearest)) if nearest else float("nan")
             out.append(line)
     return out
 
@@ -362,14 +366,19 @@ def percent(value: float) -> str:
     return "-" if np.isnan(value) else f"{100 * value:.0f}%"
 
 
+def number(value: float, digits: int) -> str:
+    return "-" if np.isnan(value) else f"{value:.{digits}f}"
+
+
 def generator_table(summary: list[dict]) -> str:
     head = ["dataset", "angle", "generator", "n", "recall@1", "recall@4", "recall@16",
-            "recall@all", "right one placed", "median placed rank"]
+            "recall@all", "a right one placed", "median placed rank", "median nearest (deg)"]
     lines = [[s["dataset"], str(s["angle"]), s["generator"], str(s["n"]),
               *(percent(float(s[f"recall_at_{k or 'all'}"])) for k in KS),
               percent(float(s["placed"])),
-              "-" if np.isnan(float(s["median_placed_rank"]))
-              else f"{float(s['median_placed_rank']):.0f}"] for s in summary]
+              *(number(float(s[k]), digits) for k, digits in (("median_placed_rank", 0),
+                                                               ("median_nearest_deg", 1)))]
+             for s in summary]
     return markdown(head, lines)
 
 
