@@ -359,6 +359,50 @@ def speed() -> str:
     ])
 
 
+#: Where ``eval/recall_generators.py`` can lose the truth, in the search's order.
+RECALL_STAGES = ("candidates", "coarse", "confirmation", "ranking", "climbs", "ascent",
+                 "polish")
+
+
+def _percent(value: str) -> str:
+    return "-" if value in ("", "nan") else f"{100 * float(value):.0f}%"
+
+
+def _number(value: str, digits: int) -> str:
+    return "-" if value in ("", "nan") else f"{float(value):.{digits}f}"
+
+
+def recall() -> str:
+    """The recall of each candidate generator per angle, and the stage of the search that
+    loses the truth, from ``eval/recall_generators.py``'s summaries."""
+    generators = [[r["dataset"], r["angle"], r["generator"], r["n"],
+                   *(_percent(r[f"recall_at_{k}"]) for k in ("1", "4", "16", "all")),
+                   _percent(r["placed"]), _number(r["median_placed_rank"], 0),
+                   _number(r["median_nearest_deg"], 1)]
+                  for r in read_csv("recall_generators")]
+    stages = [[r["dataset"], r["angle"], r["n"],
+               *(_percent(r[k]) for k in ("success", "final_right", "candidates_right",
+                                          "placed_right")),
+               f"{r['confirmed']} ({r['confirmed_wrong']})",
+               _percent(r["confirmation_right"]), _percent(r["climbs_right"]),
+               *(r[f"lost_{stage}"] for stage in RECALL_STAGES)]
+              for r in read_csv("recall_stages")]
+    return "\n".join([
+        table(["dataset", "angle", "generator", "n", "recall@1", "recall@4", "recall@16",
+               "recall@all", "a right one placed", "median placed rank",
+               "median nearest (deg)"], generators),
+        "",
+        table(["dataset", "angle", "n", "success", "right at the end", "a right candidate",
+               "a right one placed", "confirmed (wrong)", "confirmation's pose right",
+               "climbs' best right", *(f"lost: {s}" for s in RECALL_STAGES)], stages),
+        "",
+        provenance("recall_generators") + " Right: within 10 degrees of the truth, "
+        "symmetry-aware; success: 5 degrees and 1 cm; the stages in "
+        "`docs/data/recall_stages.csv`, every pair in "
+        "`docs/data/recall_pairs.csv`.",
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -372,6 +416,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "confidence": confidence,
     "density": density,
     "speed": speed,
+    "recall": recall,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
