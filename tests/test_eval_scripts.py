@@ -50,6 +50,7 @@ SCRIPTS = (
     "confidence_precision.py",
     "derive_real_data.py",
     "failure_signal.py",
+    "recall_generators.py",
     "run_benchmark.py",
     "tune_fpfh.py",
     "voxel_advice.py",
@@ -389,6 +390,21 @@ def test_failure_signal(speed_run, tmp_path):
         ["crafted", "2", "2", "fitness < 0.7", "2", "100%", "100%"],
     ]
     assert [row[1] for row in table_rows(printed, "full")] == ["1"] * 4
+
+
+def test_recall_generators(tmp_path):
+    printed = run("recall_generators.py", "--angles", 90, 24, "--limit", 1, "--rotations", 1,
+                  "--out", tmp_path, cwd=tmp_path)
+    pairs = read_csv(tmp_path / "pairs.csv")
+    assert [(r["dataset"], r["angle"]) for r in pairs] == [("turntable", "90"), ("dragon", "24")]
+    assert {"egi_first_right", "sweep_placed_rank", "lost_at", "success"} <= pairs[0].keys()
+    generators = read_csv(tmp_path / "generators.csv")
+    assert [g["generator"] for g in generators] == ["egi", "shell", "sweep"] * 2
+    assert {"recall_at_1", "recall_at_all", "median_placed_rank"} <= generators[0].keys()
+    stages = read_csv(tmp_path / "stages.csv")
+    assert [(s["dataset"], s["n"]) for s in stages] == [("turntable", "1"), ("dragon", "1")]
+    assert table_rows(printed, "turntable") and (tmp_path / "summary.md").is_file()
+    run("recall_generators.py", "--angles", 91, "--out", tmp_path, cwd=tmp_path, code=2)
 
 
 def test_run_benchmark(benchmark_run):
