@@ -27,10 +27,9 @@ __all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER", "CONFIDENT"]
 #: Factors of :func:`~o3d_spectral.suggest_voxel_size`'s size tried, in this order: the
 #: rule's size, a finer one (dragon scans 72-120 degrees apart were lost at the rule's
 #: 6.3-7.2 mm and right at 5 mm), a coarser one (a YCB-Video crop lost at 3.6 mm, right at
-#: 5-8 mm). ``eval/voxel_advice.py --trial``, 252 cases (two sets of suite instances and
-#: rotations of the real cases): right 216 times, against 214 at the rule's size and 214
-#: at the hand-chosen sizes, in 1.7-1.9 times the rule's time; chosen on the first set
-#: among ladders of 1-4 of 0.6-1.9 and early stops at 0.8-0.95, checked on the second.
+#: 5-8 mm). Chosen among ladders of 1-4 factors of 0.6-1.9 and early stops at 0.8-0.95 on
+#: one set of suite instances and real rotations; ``eval/voxel_advice.py --trial`` (126
+#: cases) gives it the rule's success overall (docs/conventions.md).
 VOXEL_LADDER = (1.0, 0.75, 1.4)
 #: A trial at least this confident ends the ladder: its pose is kept.
 CONFIDENT = 0.9
