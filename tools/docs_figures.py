@@ -354,8 +354,8 @@ def speed() -> str:
         provenance("speed") + " One thread per call, each instance's median of three "
         "calls with the methods in turn; ratio = spectral / lean FPFH-RANSAC (its ICP on "
         "both clouds thinned to half the voxel); early stops: spectral calls confirmed "
-        "before the climbs, and how many of them were wrong. 2 cores shared with other "
-        "jobs: read a ratio to within about 20%.",
+        "before the climbs, and how many of them were wrong. Read a ratio to within about "
+        "20%: the virtual machine drifts between runs.",
     ])
 
 
