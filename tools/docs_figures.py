@@ -403,6 +403,28 @@ def recall() -> str:
     ])
 
 
+def readme_speed() -> str:
+    """README's time line: the speed bench's median ratios to the lean FPFH-RANSAC, as a
+    range over views and scenes, over scan pairs, and on the 2 m tabletop."""
+    ratios = {r["group"]: float(r["ratio_median"]) for r in read_csv("speed")}
+    pairs = [g for g in ratios if g.startswith(("turntable", "dragon"))]
+    views = [g for g in ratios if g not in pairs and g != "wide"]
+
+    def spread(groups: list[str]) -> str:
+        values = [ratios[g] for g in groups]
+        return f"{min(values):.1f}-{max(values):.1f}x"
+
+    return "\n".join([
+        table(["median time, one thread", "`registration_spectral_global`",
+               "FPFH-RANSAC (ICP thinned to half the voxel)"],
+              [["views and scenes / scan pairs / a view in a 2 m tabletop",
+                f"{spread(views)} / {spread(pairs)} / {ratios['wide']:.2f}x", "1x"]]),
+        "",
+        provenance("speed") + " Per group: [docs/benchmarks.md](docs/benchmarks.md"
+        "#speed-against-fpfh-ransac).",
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -416,6 +438,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "confidence": confidence,
     "density": density,
     "speed": speed,
+    "readme-speed": readme_speed,
     "recall": recall,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
