@@ -53,15 +53,15 @@ import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from o3d_spectral import GlobalSearchOption, SpectralRegistrationResult  # noqa: E402
+from o3d_spectral import GlobalSearchOption  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import symmetric_rotation_error  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
-from o3d_spectral.law import Climb  # noqa: E402
+from o3d_spectral.registration import placed_result, searched  # noqa: E402
 from o3d_spectral.run import DEFAULT_REFINEMENT, Run, finish, start  # noqa: E402
 from o3d_spectral.search import GlobalSearch  # noqa: E402
 from o3d_spectral.search.candidates import swept_candidates  # noqa: E402
-from o3d_spectral.search.poses import confidence  # noqa: E402
+from o3d_spectral.stages import StageClock  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
 from o3d_spectral.synthetic.turntable import (  # noqa: E402
     TURNTABLE_ANGLES,
@@ -182,39 +182,6 @@ def right(pair: Pair, pose: np.ndarray) -> bool:
     return bool(pair.rotation_error(pose) < RIGHT_DEG)
 
 
-def searched(run: Run, finder: GlobalSearch, ranking) -> tuple[Climb, np.ndarray,
-                                                              SpectralRegistrationResult, dict]:
-    """The climbs and (two scans) the ascent, as the global call runs them: the best
-    climb, the pose (4, 4, in the run's frame), the result's search fields and the poses
-    of the climbs' best and the ascent."""
-    climbs = finder.climb(ranking, tolerance=run.criteria.tolerances(run.stepper.voxel_size),
-                          max_iteration=run.criteria.max_iteration, init=run.init,
-                          start=run.start)
-    ranked = sorted((state.best_iterate() for state in climbs), key=lambda i: -i[0])
-    result = SpectralRegistrationResult()
-    result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked]
-    result.search_margin = confidence([(score, M) for M, score in result.hypotheses])
-    _, pose, record = ranked[0]
-    result.translation_peak = record.translation_peak
-    poses = {"climbs": pose, "ascent": None}
-    if finder.ascends:
-        ascended = finder.ascend([M for _, M, _ in ranked])
-        pose = ascended.transformation(run.moving.centroid)
-        result.translation_peak = ascended.translation_peak
-        poses["ascent"] = pose
-    return climbs[0], pose, result, poses
-
-
-def placed_result(run: Run, placed) -> tuple[Climb, np.ndarray, SpectralRegistrationResult]:
-    """A placed pose as the confirmation polished it, returned with no climb."""
-    result = SpectralRegistrationResult()
-    result.confirmed = placed.confirmed
-    result.hypotheses = [(placed.transformation @ run.init, placed.fit)]
-    result.search_margin = placed.fit - placed.runner_up
-    result.rival_fit = placed.runner_up
-    return Climb(run.moving.centroid, converged=True), placed.transformation, result
-
-
 def confirmed_of(finder: GlobalSearch, ranking) -> tuple[object, object]:
     """The confirmation of ``ranking``'s best (None where it does not apply) and itself
     again where it confirmed (else None)."""
@@ -243,10 +210,10 @@ def pipeline(pair: Pair, run: Run, finder: GlobalSearch) -> dict:
     else:
         starts = ranking.hypotheses[: finder.option.climbs]
         out["starts_right"] = any(right(pair, rotation4(h.rotation)) for h in starts)
-        best, pose, result, poses = searched(run, finder, ranking)
-        out["climbs_right"] = right(pair, poses["climbs"])
-        if poses["ascent"] is not None:
-            out["ascent_right"] = right(pair, poses["ascent"])
+        best, pose, result, climbed = searched(run, finder, ranking, StageClock())
+        out["climbs_right"] = right(pair, climbed)
+        if finder.ascends:
+            out["ascent_right"] = right(pair, pose)
     out["before_polish_right"] = right(pair, pose)
     result = finish(run, result, best, pose @ run.init, DEFAULT_REFINEMENT, None)
     if confirmed is None:

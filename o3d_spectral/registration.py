@@ -13,6 +13,8 @@ moving cloud, run the law (:mod:`o3d_spectral.law`), polish the pose
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -31,7 +33,8 @@ from .search.confirmation import Confirmation
 from .search.poses import confidence
 from .stages import StageClock
 
-__all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global"]
+__all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global",
+           "Searched", "searched", "placed_result"]
 
 
 _COMMON_PARAMETERS = """source, target : PointCloud, tensor PointCloud or ndarray
@@ -226,16 +229,16 @@ def registration_spectral_global(
             ranking = finder.rank(sweep=True)
         confirmed = _confirmed(finder, ranking, clock)
     if confirmed is not None:
-        best, pose, result = _placed_result(run, confirmed)
+        best, pose, result = placed_result(run, confirmed)
     else:
-        best, pose, result = _searched(run, finder, ranking, clock)
+        best, pose, result, _ = searched(run, finder, ranking, clock)
     with clock.stage("polish"):
         result = finish(run, result, best, pose @ run.init, refinement,
                         max_correspondence_distance)
         if confirmed is None:  # the best placed pose, where it lies clearly closer
             placed = finder.closer_placed(ranking, run.moving_pose(result.transformation))
             if placed is not None:
-                best, pose, result = _placed_result(run, placed)
+                best, pose, result = placed_result(run, placed)
                 result = finish(run, result, best, pose @ run.init, refinement,
                                 max_correspondence_distance)
     result.stage_times = clock.times
@@ -251,7 +254,7 @@ def _confirmed(finder: GlobalSearch, ranking: Ranking, clock: StageClock) -> Con
     return confirmed if confirmed.confirmed else None
 
 
-def _placed_result(
+def placed_result(
     run: Run, placed: Confirmation
 ) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
     """The result of a call that returns a placed hypothesis as the confirmation
@@ -265,12 +268,20 @@ def _placed_result(
     return Climb(run.moving.centroid, converged=True), pose, result
 
 
-def _searched(
-    run: Run, finder: GlobalSearch, ranking: Ranking, clock: StageClock
-) -> tuple[Climb, NDArray[np.float64], SpectralRegistrationResult]:
+class Searched(NamedTuple):
+    """What :func:`searched` leaves: the best climb, the pose (4, 4, before
+    ``run.init``: the ascent's where it ran), the result's search fields, and the pose
+    the climbs ended at before any ascent."""
+
+    climb: Climb
+    pose: NDArray[np.float64]
+    result: SpectralRegistrationResult
+    climbed: NDArray[np.float64]
+
+
+def searched(run: Run, finder: GlobalSearch, ranking: Ranking, clock: StageClock) -> Searched:
     """The climbs from the best placed hypotheses and (between two scans) the peak
-    ascent: the best climb, the pose (4, 4, before ``run.init``) and the result's search
-    fields."""
+    ascent, each stage timed on ``clock``."""
     with clock.stage("climbs"):
         climbs = finder.climb(ranking, tolerance=run.criteria.tolerances(run.stepper.voxel_size),
                               max_iteration=run.criteria.max_iteration, init=run.init,
@@ -279,14 +290,15 @@ def _searched(
     result = SpectralRegistrationResult()
     result.hypotheses = [(M @ run.init, score) for score, M, _ in ranked_iterates]
     result.search_margin = confidence([(score, M) for M, score in result.hypotheses])
-    _, pose, record = ranked_iterates[0]
+    _, climbed, record = ranked_iterates[0]
+    pose = climbed
     result.translation_peak = record.translation_peak
     if finder.ascends:
         with clock.stage("ascent"):  # from the best of every climb's best
             ascended = finder.ascend([M for _, M, _ in ranked_iterates])
             pose = ascended.transformation(run.moving.centroid)
             result.translation_peak = ascended.translation_peak
-    return climbs[0], pose, result
+    return Searched(climbs[0], pose, result, climbed)
 
 
 for _call in (registration_spectral, registration_spectral_global):
