@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.plots import pyplot
 from o3d_spectral.stages import GLOBAL_STAGES
 from o3d_spectral.synthetic.instance import SceneOptions
@@ -344,8 +345,8 @@ def main() -> None:
     summary = summarise(rows)
     table = markdown(summary)
     args.out.mkdir(parents=True, exist_ok=True)
-    speed.write_csv(args.out / "density.csv", rows)
-    speed.write_csv(args.out / "summary.csv", summary)
+    write_rows(args.out / "density.csv", rows)
+    write_rows(args.out / "summary.csv", summary)
     (args.out / "summary.md").write_text(table + "\n")
     figure(summary, args.out / "density.png")
     print(table)

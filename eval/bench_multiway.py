@@ -25,7 +25,6 @@ table between the markers of that page::
 from __future__ import annotations
 
 import argparse
-import csv
 import itertools
 import re
 import subprocess
@@ -41,6 +40,7 @@ import o3d_spectral
 from o3d_spectral.harness import real
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.methods import get_method
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.multiway import pair_list, poses_from_pairs
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.instance import SceneOptions
@@ -190,13 +190,6 @@ def _commit() -> str:
     return done.stdout.strip() or "unknown"
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=3, help="random turns of the dragon")
@@ -230,8 +223,8 @@ def main(argv: list[str] | None = None) -> int:
     summaries = summary(rows, times)
     text = table(summaries, command, commit)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "rows.csv", rows)
-    write_csv(args.out / "summary.csv", summaries)
+    write_rows(args.out / "rows.csv", rows)
+    write_rows(args.out / "summary.csv", summaries)
     (args.out / "table.md").write_text(text)
     if args.docs:
         page = args.docs.read_text()

@@ -32,7 +32,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUME
     os.environ.setdefault(_var, "1")  # one thread per registration
 
 import argparse  # noqa: E402
-import csv  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from multiprocessing import get_context  # noqa: E402
@@ -42,6 +41,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from o3d_spectral.harness import real  # noqa: E402
+from o3d_spectral.harness.writers import write_rows  # noqa: E402
 
 METHODS = ("spectral_global", "fpfh_ransac")
 
@@ -119,14 +119,6 @@ def markdown(summary: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
-    fields = list(dict.fromkeys(key for row in rows for key in row))
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out/bench_real"))
@@ -147,8 +139,8 @@ def main() -> None:
             rows += done
     summary = summarise(rows)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "rows.csv", rows)
-    write_csv(args.out / "summary.csv", summary)
+    write_rows(args.out / "rows.csv", rows)
+    write_rows(args.out / "summary.csv", summary)
     table = markdown(summary)
     (args.out / "summary.md").write_text(table + "\n")
     print(table)

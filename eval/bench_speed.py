@@ -70,7 +70,6 @@ if ONE_THREAD:
         os.environ.setdefault(_var, "1")  # one thread for both methods
 
 import argparse  # noqa: E402
-import csv  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Iterator  # noqa: E402
@@ -87,6 +86,7 @@ from o3d_spectral.harness.errors import rotation_error, translation_error  # noq
 from o3d_spectral.harness.methods import get_method  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
+from o3d_spectral.harness.writers import write_rows  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
 from o3d_spectral.synthetic.sampling import rigid, sample_rotation  # noqa: E402
 from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
@@ -339,15 +339,6 @@ def markdown(summary: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        return
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
@@ -382,8 +373,8 @@ def main() -> None:
     summary = summarise(rows, groups)
     table = markdown(summary)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "instances.csv", rows)
-    write_csv(args.out / "summary.csv", summary)
+    write_rows(args.out / "instances.csv", rows)
+    write_rows(args.out / "summary.csv", summary)
     threads = "one thread" if ONE_THREAD else f"all {os.cpu_count()} cores"
     note = (f"{platform.processor() or platform.machine()}, Open3D {o3d.__version__}, {threads} "
             f"(Open3D max threads {o3d.utility.get_max_threads()}); each instance's median of "

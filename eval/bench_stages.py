@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.stages import GLOBAL_STAGES
 
 REFERENCE_COLUMN = "lean FPFH-RANSAC"
@@ -81,7 +82,7 @@ def main() -> None:
     table = "\n".join(["| group | " + " | ".join(COLUMNS) + " | confirmed |",
                        "|" + " --- |" * (len(COLUMNS) + 2), *lines])
     args.out.mkdir(parents=True, exist_ok=True)
-    speed.write_csv(args.out / "stages.csv", rows)
+    write_rows(args.out / "stages.csv", rows)
     print(table)
     print(f"wrote {args.out / 'stages.csv'}")
 

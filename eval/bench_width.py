@@ -32,6 +32,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
+from o3d_spectral.harness.writers import write_rows  # noqa: E402
 from o3d_spectral.synthetic.wide import wide_scene_instance  # noqa: E402
 
 LABELS = {"spectral_global": "spectral global", "fpfh_ransac_lean": "lean FPFH-RANSAC",
@@ -102,7 +103,7 @@ def main() -> None:
             rows += measure(args.object, width, seed)
             print(rows[-2], rows[-1], flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    speed.write_csv(args.out / "width.csv", rows)
+    write_rows(args.out / "width.csv", rows)
     figure(rows, args.figure)
     print(f"wrote {args.out / 'width.csv'} and {args.figure}")
 

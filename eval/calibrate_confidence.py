@@ -67,6 +67,7 @@ from o3d_spectral import confidence_model
 from o3d_spectral.harness import real
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.metrics import instance_score
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.pose_evidence import PoseEvidence
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid, sample_rotation
@@ -207,14 +208,6 @@ def register(case: Case) -> dict:
 def read_rows(path: Path) -> list[dict]:
     with open(path, newline="") as handle:
         return list(csv.DictReader(handle))
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
 
 
 def design(rows: list[dict]) -> np.ndarray:
@@ -364,7 +357,7 @@ def main(argv: list[str] | None = None) -> int:
         if not np.allclose(library_confidence(design(rows)), stored, atol=1e-9):
             raise AssertionError("result.confidence differs from the model of its features")
         rows = [rounded(r) for r in rows]  # as stored: a refit from the file is the same
-        write_csv(args.out / "rows.csv", rows)
+        write_rows(args.out / "rows.csv", rows)
     right = np.array([int(r["right"]) for r in rows])
     X = design(rows)
     library = library_confidence(X)
@@ -393,14 +386,14 @@ def main(argv: list[str] | None = None) -> int:
         groups.append({"group": group, **figures(library[mask], right[mask]),
                        "mean_confidence": float(library[mask].mean()) if mask.any() else math.nan})
     bins = reliability(library[held], right[held])
-    write_csv(args.out / "summary.csv", [rounded(r) for r in summary])
-    write_csv(args.out / "groups.csv", [rounded(r) for r in groups])
-    write_csv(args.out / "reliability.csv", [rounded(r) for r in bins])
+    write_rows(args.out / "summary.csv", [rounded(r) for r in summary])
+    write_rows(args.out / "groups.csv", [rounded(r) for r in groups])
+    write_rows(args.out / "reliability.csv", [rounded(r) for r in bins])
     title = "confidence on held-back calls"
     plot(bins, args.out / "reliability.png", title)
     if args.docs:
         for name in ("summary", "groups", "reliability"):
-            write_csv(ROOT / "docs" / "data" / f"calibrate_confidence_{name}.csv",
+            write_rows(ROOT / "docs" / "data" / f"calibrate_confidence_{name}.csv",
                       read_rows(args.out / f"{name}.csv"))
         plot(bins, ROOT / "docs" / "img" / "confidence_reliability.png", title)
         if fitted:

@@ -43,7 +43,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
     os.environ.setdefault(_var, "1")  # one thread per pair
 
 import argparse  # noqa: E402
-import csv  # noqa: E402
 import sys  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
@@ -57,6 +56,7 @@ from o3d_spectral import GlobalSearchOption  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import symmetric_rotation_error  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
+from o3d_spectral.harness.writers import write_rows  # noqa: E402
 from o3d_spectral.registration import placed_result, searched  # noqa: E402
 from o3d_spectral.run import DEFAULT_REFINEMENT, Run, finish, start  # noqa: E402
 from o3d_spectral.search import GlobalSearch  # noqa: E402
@@ -367,15 +367,6 @@ def markdown(head: list[str], lines: list[list[str]]) -> str:
     return "\n".join(rows + ["| " + " | ".join(line) + " |" for line in lines])
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        return
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def analysed(todo: list[Spec], workers: int) -> list[dict]:
     """The rows of ``todo``, in its order, on ``workers`` processes (progress on stderr)."""
     bar = tqdm(total=len(todo), desc="recall_generators", unit="pair", file=sys.stderr)
@@ -415,9 +406,9 @@ def main(argv: list[str] | None = None) -> None:
     rows = analysed(specs(args.angles, args.rotations, args.limit), args.workers)
     generators, stages = generator_summary(rows), stage_summary(rows)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "pairs.csv", rows)
-    write_csv(args.out / "generators.csv", generators)
-    write_csv(args.out / "stages.csv", stages)
+    write_rows(args.out / "pairs.csv", rows)
+    write_rows(args.out / "generators.csv", generators)
+    write_rows(args.out / "stages.csv", stages)
     text = generator_table(generators) + "\n\n" + stage_table(stages)
     (args.out / "summary.md").write_text(text + "\n")
     print(text)

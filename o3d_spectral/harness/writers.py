@@ -1,14 +1,15 @@
 """Result tables (:class:`~o3d_spectral.harness.tables.Table`) as GitHub Markdown,
-LaTeX booktabs and CSV files."""
+LaTeX booktabs and CSV files; rows of dicts as a CSV file (the benchmarks' raw rows)."""
 
 from __future__ import annotations
 
+import csv
 import math
 from pathlib import Path
 
 from o3d_spectral.harness.tables import Table
 
-__all__ = ["to_latex", "to_markdown", "write_table"]
+__all__ = ["to_latex", "to_markdown", "write_table", "write_rows"]
 
 
 def _cell(value, kind: str, *, latex: bool) -> str:
@@ -81,3 +82,16 @@ def write_table(table: Table, out_dir: Path) -> list[Path]:
     paths[1].write_text(to_latex(table))
     table.frame.to_csv(paths[2], index=False)
     return paths
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    """``rows`` as a CSV file at ``path`` (its folder made): one column per key, in the
+    order the rows first hold them; nothing written when there are no rows."""
+    if not rows:
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fields = list(dict.fromkeys(key for row in rows for key in row))
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(rows)
