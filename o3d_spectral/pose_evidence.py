@@ -107,6 +107,7 @@ def pose_evidence(
     pose: NDArray[np.float64], voxel_size: float, *, fit: float, rival_fit: float = 0.0,
     ambiguous: bool = False, rival_self_match: float = float("inf"), two_views: bool = False,
     sensor: NDArray[np.float64] | None = None, two_sided: bool = False,
+    tree: cKDTree | None = None,
 ) -> PoseEvidence:
     """The evidence of ``pose`` (see :class:`PoseEvidence`).
 
@@ -129,6 +130,9 @@ def pose_evidence(
     two_sided : bool
         The source was read two-sided (its normals' signs mean nothing): every point
         faces the sensor.
+    tree : scipy.spatial.cKDTree, optional
+        A KD-tree of ``target_points`` (built here, on the target's points near the pose,
+        when None).
 
     Returns
     -------
@@ -152,14 +156,17 @@ def pose_evidence(
     if len(near_points) == 0:
         return PoseEvidence(float(fit), 1.0, 1.0, 0.0, None if sensor is None else 0.0,
                             **rival)
-    distance, nearest = cKDTree(near_points).query(shown, distance_upper_bound=v)
+    found_points, found_normals = target_points, target_normals
+    if tree is None:  # the points within a voxel of the source are near it
+        tree, found_points, found_normals = cKDTree(near_points), near_points, near_normals
+    distance, nearest = tree.query(shown, distance_upper_bound=v)
     inlier = np.isfinite(distance)
     plane, agreement = 1.0, 0.0
     if inlier.any():
         j = nearest[inlier]
         plane = float(np.median(np.abs(np.einsum(
-            "ij,ij->i", shown[inlier] - near_points[j], near_normals[j])))) / v
-        cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], near_normals[j]))
+            "ij,ij->i", shown[inlier] - found_points[j], found_normals[j])))) / v
+        cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], found_normals[j]))
         agreement = float(np.mean(cosine > np.cos(np.deg2rad(NORMAL_AGREEMENT_ANGLE))))
     inside = near_points[np.sum((near_points - centre) ** 2, axis=1) <= (radius - v) ** 2]
     target_fit = 1.0

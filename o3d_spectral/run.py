@@ -38,7 +38,7 @@ from .refinement import near_pose, refine, with_normals
 from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
 from .stepper import MovingCloud, SpectralStepper
-from .verification import ambiguity, measure
+from .verification import FixedPoints, ambiguity, measure
 
 __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -199,7 +199,7 @@ def _measured(
     (:func:`o3d_spectral.pose_evidence.pose_evidence`) and the calibrated confidence
     (:mod:`o3d_spectral.confidence_model`); set them in ``result``."""
     to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
-    fixed = with_normals(target, *run.fixed_normals)
+    fixed = FixedPoints(with_normals(target, *run.fixed_normals))  # one KD-tree for all
     pose = transformation @ to_moving
     others = [M @ to_moving for M, _ in result.hypotheses]
     culls = run.situation.culls
@@ -213,7 +213,8 @@ def _measured(
         run.stepper.voxel_size, fit=measured.fit, rival_fit=rival.fit,
         ambiguous=rival.ambiguous, rival_self_match=rival.self_match,
         two_views=run.stepper.viewpoint is not None and not culls,
-        sensor=run.stepper.viewpoint, two_sided=run.moving.reading.two_sided)
+        sensor=run.stepper.viewpoint, two_sided=run.moving.reading.two_sided,
+        tree=run.stepper.normals_tree)
     result.pose_evidence = evidence
     result.confidence = confidence(evidence)
 

@@ -148,8 +148,9 @@ class SpectralStepper:
         )
 
     @cached_property
-    def _normals_tree(self) -> cKDTree:
-        """KD-tree of the fixed cloud's normal points (:meth:`focused`), built once."""
+    def normals_tree(self) -> cKDTree:
+        """KD-tree of the fixed cloud's normal points (:attr:`target_normal_points`; for
+        :meth:`focused` and the measure of the returned pose), built once."""
         return cKDTree(self.target_normal_points)
 
     def _viewpoint(self, target: PreparedCloud) -> NDArray[np.float64] | None:
@@ -236,7 +237,7 @@ class SpectralStepper:
         when over ``FOCUS_SHARE`` of the normals are kept, or fewer than ``MIN_POINTS``.
         """
         near = np.asarray(near, dtype=np.float64).reshape(-1, 3)
-        hits = self._normals_tree.query_ball_point(near, r=radius, return_sorted=False)
+        hits = self.normals_tree.query_ball_point(near, r=radius, return_sorted=False)
         kept = np.zeros(len(self.target_normal_points), dtype=bool)
         kept[np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])] = True
         if kept.sum() < MIN_POINTS or kept.mean() > FOCUS_SHARE:

@@ -39,7 +39,8 @@ from .search.poses import distinct
 from .spectra import so3
 from .stepper import MovingCloud, SpectralStepper
 
-__all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns", "RIVALS",
+__all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns", "FixedPoints",
+           "RIVALS",
            "AMBIGUITY_MARGIN", "AMBIGUITY_MIN_FIT", "TURN_ANGLES", "TURN_POLISH",
            "TURN_REACH", "ASYMMETRIC"]
 
@@ -62,6 +63,30 @@ TURN_REACH = 4.0
 #: A rival whose turn from the returned pose moves the source's points this far (median,
 #: voxels) from its own surface or more is a different pose, not a symmetry.
 ASYMMETRIC = 0.15
+
+
+class FixedPoints:
+    """The fixed cloud and one KD-tree of its points, built once for every fit that
+    measures poses against it.
+
+    Parameters
+    ----------
+    cloud : open3d.geometry.PointCloud
+        The fixed cloud with normals, metres.
+    """
+
+    def __init__(self, cloud: o3d.geometry.PointCloud) -> None:
+        self.cloud = cloud
+        points = np.asarray(cloud.points)
+        self.tree = cKDTree(points) if len(points) else None
+
+    def share(self, points: NDArray[np.float64], distance: float) -> float:
+        """Share of ``points`` (K, 3, metres) within ``distance`` (metres) of the fixed
+        points (0 when either holds none)."""
+        if self.tree is None or len(points) == 0:
+            return 0.0
+        distances, _ = self.tree.query(points, distance_upper_bound=distance)
+        return float(np.mean(np.isfinite(distances)))
 
 
 def verify(
@@ -94,7 +119,7 @@ def verify(
         The fit of ``pose``, and the best fit of a hypothesis that turns the cloud over
         ``DISTINCT_ANGLE`` from ``pose`` (0 when there is none), each in [0, 1].
     """
-    measured = measure(stepper, moving, fixed, pose, others, culls=culls)
+    measured = measure(stepper, moving, FixedPoints(fixed), pose, others, culls=culls)
     return measured.fit, measured.rival_fit
 
 
@@ -118,16 +143,16 @@ class Verification:
 
 
 def measure(
-    stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
+    stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64], others: Sequence[NDArray[np.float64]] = (), *,
     culls: bool,
 ) -> Verification:
-    """:func:`verify`, with the best rival's pose."""
-    share = fit(stepper, moving, fixed, pose, polish=False).share
+    """:func:`verify` on ``fixed``'s KD-tree, with the best rival's pose."""
+    share = _share(stepper, moving, fixed, pose)
     best = Verification(_facing_share(stepper, moving, fixed, pose, share, culls))
     for other in list(others)[:RIVALS]:  # measured where they are: distinct ones only
         if distinct(other, pose):
-            other_share = fit(stepper, moving, fixed, other, polish=False).share
+            other_share = _share(stepper, moving, fixed, other)
             other_share = _facing_share(stepper, moving, fixed, other, other_share, culls)
             if best.rival is None or other_share > best.rival_fit:
                 best = Verification(best.fit, other_share, other)
@@ -135,7 +160,7 @@ def measure(
 
 
 def _facing_share(
-    stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
+    stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64], share: float, culls: bool,
 ) -> float:
     """``share`` (:func:`o3d_spectral.search.confirmation.fit`'s), or, for two views (the moving
@@ -149,13 +174,7 @@ def _facing_share(
     facing = np.einsum("ij,ij->i", moving.point_normals @ R.T, stepper.viewpoint - points) > 0
     if facing.sum() < MIN_POINTS:
         return share
-    points = points[facing]
-    near, _ = near_pose(fixed, points, np.eye(4), stepper.voxel_size)
-    if len(near.points) == 0:
-        return 0.0
-    distances, _ = cKDTree(np.asarray(near.points)).query(
-        points, distance_upper_bound=stepper.voxel_size)
-    return float(np.mean(np.isfinite(distances)))
+    return fixed.share(points[facing], stepper.voxel_size)
 
 
 @dataclass(frozen=True)
@@ -192,7 +211,7 @@ class Ambiguity:
 
 
 def ambiguity(
-    stepper: SpectralStepper, moving: MovingCloud, fixed: o3d.geometry.PointCloud,
+    stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64], measured: Verification, *, culls: bool,
 ) -> Ambiguity:
     """The best distinct pose among the measured rival and the turns of ``pose``.
@@ -220,18 +239,17 @@ def ambiguity(
     its other side), so the cost is a few distance queries and at most one polish.
     """
     best_fit, best = measured.rival_fit, measured.rival
-    # a turn about the points' centroid keeps them in their ball: the fixed points
-    # within reach of a polish (and its drift) of that ball are all a fit can use
-    near, _ = near_pose(fixed, moving.points, pose, TURN_REACH * stepper.voxel_size)
-    tree = cKDTree(np.asarray(near.points)) if len(near.points) else None
-    shares = [(_share(stepper, moving, tree, turn), turn) for turn in turns(moving, pose)]
+    shares = [(_share(stepper, moving, fixed, turn), turn) for turn in turns(moving, pose)]
     share, turn = max(shares, key=lambda measured_turn: measured_turn[0])
     if share >= measured.fit - TURN_POLISH:
+        # a turn about the points' centroid keeps them in their ball: the fixed points
+        # within reach of a polish (and its drift) of that ball are all it can use
+        near, _ = near_pose(fixed.cloud, moving.points, pose, TURN_REACH * stepper.voxel_size)
         polished = fit(stepper, moving, near, turn)
         if distinct(polished.pose, pose):
             share, turn = polished.share, polished.pose
     if distinct(turn, pose):
-        share = _facing_share(stepper, moving, near, turn, share, culls)
+        share = _facing_share(stepper, moving, fixed, turn, share, culls)
         if best is None or share > best_fit:
             best_fit, best = share, turn
     if best is None:
@@ -256,18 +274,15 @@ def _self_match(moving: MovingCloud, motion: NDArray[np.float64], voxel_size: fl
 
 
 def _share(
-    stepper: SpectralStepper, moving: MovingCloud, tree: cKDTree | None,
+    stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64],
 ) -> float:
     """:func:`o3d_spectral.search.confirmation.fit`'s share at ``pose`` (4, 4) with no
-    polish, on a KD-tree of the fixed points near it (None: none)."""
-    if tree is None:
-        return 0.0
+    polish: of the moving points visible there, those within a voxel of ``fixed``."""
     R, t = pose[:3, :3], pose[:3, 3]
     _, mask, _ = stepper.visible(moving, R, R @ moving.centroid + t - moving.centroid)
     points = moving.points if mask is None else moving.points[mask]
-    distances, _ = tree.query(points @ R.T + t, distance_upper_bound=stepper.voxel_size)
-    return float(np.mean(np.isfinite(distances)))
+    return fixed.share(points @ R.T + t, stepper.voxel_size)
 
 
 def turns(moving: MovingCloud, pose: NDArray[np.float64]) -> list[NDArray[np.float64]]:
