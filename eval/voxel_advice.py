@@ -6,7 +6,9 @@ twice: at the hand-chosen voxel size (the suites': 8 mm, as ``o3d-spectral eval`
 benchmarks run them; the real groups': ``harness.real.VOXEL_SIZES``) and at
 ``o3d_spectral.suggest_voxel_size(source, target)`` (once when the two agree); with
 ``--trial`` a third time by ``o3d_spectral.voxel_trial`` (the rule's size and the others of
-its ladder, the most confident kept; its time is the whole trial's).
+its ladder until two agree, the pose they agree on kept; its time is the whole trial's).
+Each row's ``tried`` lists the sizes registered and their confidences
+(``mm:confidence``, ``;``-separated; one for a single call).
 
 Groups: the suites (``--suites DIR`` holding ``full``, ``partial``, ``occluded``,
 ``cluttered``), instances ``--start`` to ``--start + --limit``; the real groups
@@ -78,21 +80,24 @@ def register(source, target, voxel: float, score) -> dict:
 
     began = time.perf_counter()
     result = o3d_spectral.registration_spectral_global(source, target, voxel)
-    return scored(result, voxel, time.perf_counter() - began, score)
+    return scored(result, voxel, time.perf_counter() - began, score,
+                  [(voxel, result.confidence)])
 
 
 def by_trial(source, target, score) -> dict:
-    """``o3d_spectral.voxel_trial`` (the sizes of its ladder, the most confident kept):
-    the kept call's errors, success and signals, its size and the trial's whole time."""
+    """``o3d_spectral.voxel_trial`` (the sizes of its ladder until two agree): the kept
+    call's errors, success and signals, its size, the sizes tried and the whole time."""
     import o3d_spectral
 
     began = time.perf_counter()
     trial = o3d_spectral.voxel_trial(source, target)
-    return scored(trial.result, trial.voxel_size, time.perf_counter() - began, score)
+    return scored(trial.result, trial.voxel_size, time.perf_counter() - began, score,
+                  trial.tried)
 
 
-def scored(result, voxel: float, seconds: float, score) -> dict:
-    """The row of a registration ``result`` at ``voxel`` (metres) that took ``seconds``."""
+def scored(result, voxel: float, seconds: float, score, tried) -> dict:
+    """The row of a registration ``result`` at ``voxel`` (metres) that took ``seconds``;
+    ``tried``: the sizes registered (metres) and their confidences."""
     rotation, translation, success = score(np.asarray(result.transformation))
     warned = any(WARNING_TEXT in w for w in result.warnings)
     if warned != may_be_wrong(result.confidence):  # the table recomputes it so
@@ -101,7 +106,8 @@ def scored(result, voxel: float, seconds: float, score) -> dict:
             "translation_error_m": translation, "success": bool(success),
             "fitness": result.fitness, "fit": result.fit, "rival_fit": result.rival_fit,
             "confidence": result.confidence, "confirmed": result.confirmed,
-            "warned": warned}
+            "warned": warned,
+            "tried": ";".join(f"{v * 1e3:.3f}:{c:.4f}" for v, c in tried)}
 
 
 def run(args: argparse.Namespace, csv_path: Path) -> list[dict]:

@@ -1,14 +1,24 @@
-"""A voxel size chosen by trial: registered at a few sizes about the rule's, the most
-confident kept.
+"""A voxel size chosen by trial: registered at a few sizes about the rule's, the pose the
+sizes agree on kept.
 
 :func:`o3d_spectral.suggest_voxel_size` reads a size off the clouds' point spacing and
 extent; on the benchmarks it registers as often as the sizes chosen by hand over all,
 but less often on single groups (dragon scans 72-120 degrees apart, RGB-D crops of small
-objects), where success turns on the size. :func:`voxel_trial` registers
-at the rule's size first and, unless that pose is confidently right, at the other sizes
-of :data:`VOXEL_LADDER` in turn, and keeps the pose whose calibrated
-``result.confidence`` (the probability that it is right) is highest. Its cost is one
-global registration where the first is confident, up to ``len(ladder)`` otherwise.
+objects), where success turns on the size. :func:`voxel_trial` registers at the rule's
+size and at the other sizes of :data:`VOXEL_LADDER` in turn, and stops where two sizes
+agree on the pose.
+
+One registration's calibrated ``result.confidence`` does not settle it: a pose wrong at
+one size can be as confident as the right one at another (two sizes of a nearly
+symmetric object both at 1.0; two scans 72 degrees apart at 0.92 wrong against 0.87 and
+0.90 right), and the confidences of two sizes then rank the poses by noise. Two grids
+of different sizes sample the clouds differently, so a pose found at both is rarely an
+artefact of one. While sizes remain, two that agree on a pose (with a confidence of at
+least 0.5) end the ladder. At its end the sizes vote: each for its pose with its
+confidence, counted first where its pose is *decisive*: unambiguous (``result.ambiguity``
+is None: no distinct pose fits as well at that size; an ambiguous result is one its own
+evidence cannot tell from another pose) and not warned about. Its cost is two global
+registrations where the first two sizes agree, ``len(ladder)`` otherwise.
 """
 
 from __future__ import annotations
@@ -18,21 +28,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .diagnostics import may_be_wrong
 from .registration import registration_spectral_global
 from .result import SpectralRegistrationResult
+from .search.poses import distinct
 from .voxel import suggest_voxel_size
 
-__all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER", "CONFIDENT"]
+__all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER"]
 
 #: Factors of :func:`~o3d_spectral.suggest_voxel_size`'s size tried, in this order: the
-#: rule's size, a finer one (dragon scans 72-120 degrees apart were lost at the rule's
-#: 6.3-7.2 mm and right at 5 mm), a coarser one (a YCB-Video crop lost at 3.6 mm, right at
-#: 5-8 mm). Chosen among ladders of 1-4 factors of 0.6-1.9 and early stops at 0.8-0.95 on
-#: one set of suite instances and real rotations; ``eval/voxel_advice.py --trial`` (126
-#: cases) gives it the rule's success overall (docs/conventions.md).
-VOXEL_LADDER = (1.0, 0.75, 1.4)
-#: A trial at least this confident ends the ladder: its pose is kept.
-CONFIDENT = 0.9
+#: rule's size, a coarser one (cheaper, about half the rule's time; a YCB-Video crop
+#: lost at 3.6 mm was right at 5-8 mm), a finer one (dragon scans 96-120 degrees apart
+#: lost at the rule's 6.3-7.2 mm were right at 5 mm). ``eval/voxel_advice.py --trial``
+#: measures it (docs/conventions.md).
+VOXEL_LADDER = (1.0, 1.4, 0.75)
 
 
 @dataclass
@@ -47,11 +56,15 @@ class VoxelTrial:
         The kept registration.
     tried : list of (float, float)
         Each size tried (metres) and its registration's ``confidence``, in order.
+    agreed : bool
+        Another size's pose agrees with the kept one (within 10 degrees,
+        :func:`o3d_spectral.search.poses.distinct`).
     """
 
     voxel_size: float
     result: SpectralRegistrationResult
     tried: list[tuple[float, float]] = field(default_factory=list)
+    agreed: bool = False
 
 
 def voxel_trial(
@@ -61,10 +74,17 @@ def voxel_trial(
     """Register ``source`` to ``target`` at a voxel size chosen by trial.
 
     The sizes are :func:`~o3d_spectral.suggest_voxel_size`'s times each factor of
-    ``ladder``, in order; each is registered by
-    :func:`~o3d_spectral.registration_spectral_global` until one's ``confidence``
-    reaches :data:`CONFIDENT`, and the most confident registration is kept (the first of
-    equals).
+    ``ladder``, in order, each registered by
+    :func:`~o3d_spectral.registration_spectral_global`. While sizes remain, the ladder
+    ends where a size's pose agrees with an earlier size's (the two are not
+    :func:`~o3d_spectral.search.poses.distinct`: within 10 degrees) and the more
+    confident of the two is not one the call warns may be wrong
+    (:func:`o3d_spectral.diagnostics.may_be_wrong`, confidence under 0.5); that one is
+    kept. Once every size is tried, the sizes vote: the poses that agree with each pose
+    form its pool, scored by the sum of the confidences of its *decisive* poses (no
+    distinct pose fitting as well at their size, ``result.ambiguity`` None, and not
+    warned about), ties by the sum of all its confidences; the most confident pose of
+    the best pool is kept (the first of equals).
 
     Parameters
     ----------
@@ -86,24 +106,69 @@ def voxel_trial(
         For an empty ``ladder`` or a factor that is not a positive number, and as
         :func:`~o3d_spectral.suggest_voxel_size` and the registration call.
 
+    Notes
+    -----
+    With the default ladder a call costs the rule's registration and the coarser one's
+    (about 1.5 times the rule's alone) where they agree, and the finer one's besides
+    otherwise; ``--voxel-size rule`` (one registration at the rule's size) is the fast
+    path.
+
     Examples
     --------
     >>> trial = o3d_spectral.voxel_trial(model, scan)  # doctest: +SKIP
-    >>> trial.voxel_size, trial.result.confidence  # doctest: +SKIP
+    >>> trial.voxel_size, trial.result.confidence, trial.agreed  # doctest: +SKIP
     """
     factors = [float(f) for f in ladder]
     if not factors or not all(np.isfinite(f) and f > 0.0 for f in factors):
         raise ValueError(f"ladder must hold positive factors, got {list(ladder)!r}")
     rule = suggest_voxel_size(source, target)
-    kept: VoxelTrial | None = None
-    tried: list[tuple[float, float]] = []
+    trials: list[VoxelTrial] = []
     for factor in factors:
         voxel_size = rule * factor
-        result = registration_spectral_global(source, target, voxel_size, **options)
-        tried.append((voxel_size, result.confidence))
-        if kept is None or result.confidence > kept.result.confidence:
-            kept = VoxelTrial(voxel_size, result)
-        if result.confidence >= CONFIDENT:
+        trials.append(VoxelTrial(voxel_size, registration_spectral_global(
+            source, target, voxel_size, **options)))
+        kept = _settled(trials) if len(trials) < len(factors) else None
+        if kept is not None:
             break
-    kept.tried = tried
+    else:
+        kept = _voted(trials)
+    kept.tried = [(t.voxel_size, t.result.confidence) for t in trials]
+    kept.agreed = any(_agree(kept, t) for t in trials if t is not kept)
     return kept
+
+
+def _settled(trials: Sequence[VoxelTrial]) -> VoxelTrial | None:
+    """The more confident of the last trial and an earlier one whose pose it agrees with,
+    where that is not a pose the call warns may be wrong; None where there is none."""
+    *earlier, last = trials
+    pairs = [_best([other, last]) for other in earlier if _agree(other, last)]
+    settled = [t for t in pairs if not may_be_wrong(t.result.confidence)]
+    return _best(settled) if settled else None
+
+
+def _agree(a: VoxelTrial, b: VoxelTrial) -> bool:
+    """Whether two trials' poses agree: their rotations are not distinct."""
+    return not distinct(np.asarray(a.result.transformation),
+                        np.asarray(b.result.transformation))
+
+
+def _best(trials: Sequence[VoxelTrial]) -> VoxelTrial:
+    """The most confident of ``trials``, the first of equals."""
+    return max(trials, key=lambda t: t.result.confidence)
+
+
+def _decisive(trial: VoxelTrial) -> bool:
+    """Whether a trial's pose is unambiguous (no distinct pose fits as well at its size)
+    and not one the call warns may be wrong."""
+    return trial.result.ambiguity is None and not may_be_wrong(trial.result.confidence)
+
+
+def _voted(trials: Sequence[VoxelTrial]) -> VoxelTrial:
+    """The most confident trial of the best-scoring pool of agreeing trials."""
+    def score(pool: list[VoxelTrial]) -> tuple[float, float]:
+        confidences = [t.result.confidence for t in pool]
+        decisive = [t.result.confidence for t in pool if _decisive(t)]
+        return sum(decisive), sum(confidences)
+
+    pools = [[other for other in trials if _agree(trial, other)] for trial in trials]
+    return _best(max(pools, key=score))

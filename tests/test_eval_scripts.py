@@ -454,3 +454,5 @@ def test_voxel_advice_by_trial(suites, tmp_path):
     assert factors[0] == pytest.approx(min(VOXEL_LADDER,
                                            key=lambda f: abs(f - factors[0])))
     assert "trial success" in printed.splitlines()[2]
+    assert len(rows[0]["tried"].split(";")) == 1
+    assert len(rows[2]["tried"].split(";")) in (2, len(VOXEL_LADDER))

@@ -38,10 +38,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--voxel-size", type=_voxel_size, required=True, metavar="METRES|auto|rule",
         help="voxel edge, metres; 'rule': read off the clouds' point spacing and extent "
-        "(o3d_spectral.suggest_voxel_size), one registration; 'auto': the rule's size and, "
-        "unless that pose is confidently right, 1.4 and 0.75 times it, the most confident "
-        "kept (o3d_spectral.voxel_trial: up to three registrations; with --init, the "
-        "rule's); the size is logged and in the --json output",
+        "(o3d_spectral.suggest_voxel_size), one registration; 'auto': the rule's size and 1.4 "
+        "times it, and 0.75 times it unless those two agree on the pose, the pose the "
+        "sizes agree on kept (o3d_spectral.voxel_trial: two or three registrations, their "
+        "time in docs/conventions.md; with --init, the rule's); the size is logged and "
+        "in the --json output",
     )
     parser.add_argument(
         "--init", type=Path, metavar="FILE",
@@ -326,8 +327,8 @@ def _registered(
 ):
     """The registration the arguments ask for, and the voxel size it ran at (metres):
     the law from ``init``; the global search at ``voxel_size``; or, with ``trial``, the
-    global search at the sizes of :func:`o3d_spectral.voxel_trial`, the most confident
-    kept."""
+    global search at the sizes of :func:`o3d_spectral.voxel_trial`, the pose they agree
+    on kept."""
     import o3d_spectral
 
     option = o3d_spectral.SpectralRegistrationOption(bandwidth=args.bandwidth)
