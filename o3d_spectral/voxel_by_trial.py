@@ -37,7 +37,7 @@ from .voxel import suggest_voxel_size
 __all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER"]
 
 #: Factors of :func:`~o3d_spectral.suggest_voxel_size`'s size tried, in this order: the
-#: rule's size, a coarser one (cheaper, about half the rule's time; a YCB-Video crop
+#: rule's size, a coarser one (a median 0.6 of the rule's time; a YCB-Video crop
 #: lost at 3.6 mm was right at 5-8 mm), a finer one (dragon scans 96-120 degrees apart
 #: lost at the rule's 6.3-7.2 mm were right at 5 mm). ``eval/voxel_advice.py --trial``
 #: measures it (docs/conventions.md).
@@ -108,10 +108,12 @@ def voxel_trial(
 
     Notes
     -----
-    With the default ladder a call costs the rule's registration and the coarser one's
-    (about 1.5 times the rule's alone) where they agree, and the finer one's besides
-    otherwise; ``--voxel-size rule`` (one registration at the rule's size) is the fast
-    path.
+    The coarser size costs a median 0.6 of the rule's registration and the finer 1.6
+    times it, so a call costs about 1.6 times the rule's where the first two sizes agree
+    and 3.2 times otherwise (on the benchmarks a median 1.8 times per case, three sizes
+    in two cases of five: an object with a symmetry is often placed right at two sizes
+    by two of its symmetric poses, which do not agree). ``--voxel-size rule`` (one
+    registration at the rule's size) is the fast path.
 
     Examples
     --------
