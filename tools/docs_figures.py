@@ -359,6 +359,29 @@ def speed() -> str:
     ])
 
 
+def cores() -> str:
+    """What every core gains over one thread, per group, for both methods: the speed
+    bench's one-thread medians over its ``--all-cores`` medians."""
+    one = {r["group"]: r for r in read_csv("speed")}
+    lines = []
+    for r in read_csv("speed_all_cores"):
+        single = one[r["group"]]
+        gains = [float(single[k]) / float(r[k]) for k in (
+            "spectral_global_median_s", "fpfh_ransac_lean_median_s")]
+        lines.append([r["group"], r["n"], f"{float(r['spectral_global_median_s']):.3f}",
+                      f"{float(r['fpfh_ransac_lean_median_s']):.3f}",
+                      *(f"{g:.2f}x" for g in gains), f"{float(r['ratio_median']):.2f}"])
+    return "\n".join([
+        table(["group", "n", "spectral median s, all cores", "lean FPFH median s, all cores",
+               "spectral gain over one thread", "lean FPFH gain over one thread",
+               "ratio median, all cores"], lines),
+        "",
+        provenance("speed", "speed_all_cores") + " Gain: the one-thread run's median over "
+        "the all-cores run's, per method; both at their defaults on every core of this "
+        "2-core machine.",
+    ])
+
+
 #: Where ``eval/recall_generators.py`` can lose the truth, in the search's order.
 RECALL_STAGES = ("candidates", "coarse", "confirmation", "ranking", "climbs", "ascent",
                  "polish")
@@ -438,6 +461,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "confidence": confidence,
     "density": density,
     "speed": speed,
+    "cores": cores,
     "readme-speed": readme_speed,
     "recall": recall,
 }
