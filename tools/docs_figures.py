@@ -382,6 +382,42 @@ def cores() -> str:
     ])
 
 
+def voxel_trial() -> str:
+    """The voxel size by trial against the rule's size and the hand-chosen one, per group:
+    success, sizes and median times, from ``eval/voxel_advice.py --trial``'s rows."""
+    rows = read_csv("voxel_advice_trial")
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    lines = []
+    for group in [*groups, "all"]:
+        mine = [r for r in rows if group in ("all", r["group"])]
+        by = {c: [r for r in mine if r["choice"] == c] for c in ("hand", "suggested", "trial")}
+        rate = {c: 100 * sum(r["success"] == "True" for r in v) / len(v) for c, v in by.items()}
+        hand_mm = sorted({f"{1000 * float(r['voxel_m']):.0f}" for r in by["hand"]}, key=float)
+        rule_mm = _median([1000 * float(r["voxel_m"]) for r in by["suggested"]])
+        sizes = [len(r["tried"].split(";")) for r in by["trial"]]
+        seconds = [_median([float(r["seconds"]) for r in by[c]])
+                   for c in ("hand", "suggested", "trial")]
+        lines.append([group, str(len(by["trial"])), ", ".join(hand_mm), f"{rule_mm:.1f}",
+                      *(f"{rate[c]:.1f}%" for c in ("hand", "suggested", "trial")),
+                      f"{rate['trial'] - rate['hand']:+.1f}",
+                      f"{sum(n == 2 for n in sizes)} / {sum(n == 3 for n in sizes)}",
+                      " / ".join(f"{t:.2f}" for t in seconds)])
+    return "\n".join([
+        table(["group", "n", "hand mm", "rule mm (median)", "hand success", "rule success",
+               "trial success", "trial - hand, points", "trial: two sizes / three",
+               "median s: hand / rule / trial"], lines),
+        "",
+        provenance("voxel_advice_trial") + " Success: symmetry-aware, 5 degrees and 1 cm; "
+        "times (the registrations, as the script reports them) on 2 shared cores.",
+    ])
+
+
+def _median(values: list[float]) -> float:
+    ordered = sorted(values)
+    middle = len(ordered) // 2
+    return ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2
+
+
 #: Where ``eval/recall_generators.py`` can lose the truth, in the search's order.
 RECALL_STAGES = ("candidates", "coarse", "confirmation", "ranking", "climbs", "ascent",
                  "polish")
@@ -462,6 +498,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "density": density,
     "speed": speed,
     "cores": cores,
+    "voxel-trial": voxel_trial,
     "readme-speed": readme_speed,
     "recall": recall,
 }
