@@ -195,8 +195,12 @@ def pipeline(pair: Pair, run: Run, finder: GlobalSearch) -> dict:
     """The search and polish of ``registration_spectral_global``, stage by stage; what
     each stage left, judged against the truth."""
     out: dict = {"swept": False}
-    out["ranking_first"] = ranking = finder.rank()
+    out["ranking_first"] = ranking = finder.rank(shells=not finder.shells_later)
     confirmation, confirmed = confirmed_of(finder, ranking)
+    if confirmed is None and finder.shells_later:
+        ranking = finder.rank()
+        confirmation, confirmed = confirmed_of(finder, ranking)
+    out["shelled"] = finder.state.shelled
     if confirmed is None and finder.sweeps:
         out["swept"] = True
         ranking = finder.rank(sweep=True)
@@ -248,10 +252,13 @@ def analyse(spec: Spec) -> dict:
     finder = GlobalSearch(run.stepper, run.moving, run.target, GlobalSearchOption(workers=1),
                           run.situation)
     stages = pipeline(pair, run, finder)
-    errors = generator_rows(pair, finder)
+    # every generator ranked, as after a sweep (the shells join where the search stopped
+    # before them)
     full = stages["ranking"] if stages["swept"] or not finder.sweeps else finder.rank(sweep=True)
+    errors = generator_rows(pair, finder)
     ranks = placed_ranks(pair, full.hypotheses)
-    used = [g for g in GENERATORS if g != "sweep" or stages["swept"]]
+    used = [g for g in GENERATORS
+            if (g != "sweep" or stages["swept"]) and (g != "shell" or stages["shelled"])]
     rotation_deg, translation_m, success = pair.score(stages["transformation"])
     row = {"dataset": spec.dataset, "angle": spec.angle, "pair": spec.name,
            "two_scans": finder.situation.two_scans, "swept": stages["swept"]}
