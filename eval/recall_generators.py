@@ -195,12 +195,8 @@ def pipeline(pair: Pair, run: Run, finder: GlobalSearch) -> dict:
     """The search and polish of ``registration_spectral_global``, stage by stage; what
     each stage left, judged against the truth."""
     out: dict = {"swept": False}
-    out["ranking_first"] = ranking = finder.rank(shells=not finder.shells_later)
+    out["ranking_first"] = ranking = finder.rank()
     confirmation, confirmed = confirmed_of(finder, ranking)
-    if confirmed is None and finder.shells_later:
-        ranking = finder.rank()
-        confirmation, confirmed = confirmed_of(finder, ranking)
-    out["shelled"] = finder.state.shelled
     if confirmed is None and finder.sweeps:
         out["swept"] = True
         ranking = finder.rank(sweep=True)
@@ -252,13 +248,10 @@ def analyse(spec: Spec) -> dict:
     finder = GlobalSearch(run.stepper, run.moving, run.target, GlobalSearchOption(workers=1),
                           run.situation)
     stages = pipeline(pair, run, finder)
-    # every generator ranked, as after a sweep (the shells join where the search stopped
-    # before them)
-    full = stages["ranking"] if stages["swept"] or not finder.sweeps else finder.rank(sweep=True)
     errors = generator_rows(pair, finder)
+    full = stages["ranking"] if stages["swept"] or not finder.sweeps else finder.rank(sweep=True)
     ranks = placed_ranks(pair, full.hypotheses)
-    used = [g for g in GENERATORS
-            if (g != "sweep" or stages["swept"]) and (g != "shell" or stages["shelled"])]
+    used = [g for g in GENERATORS if g != "sweep" or stages["swept"]]
     rotation_deg, translation_m, success = pair.score(stages["transformation"])
     row = {"dataset": spec.dataset, "angle": spec.angle, "pair": spec.name,
            "two_scans": finder.situation.two_scans, "swept": stages["swept"]}

@@ -222,12 +222,8 @@ def registration_spectral_global(
         run = start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
     finder = GlobalSearch(run.stepper, run.moving, run.target, search, run.situation)
     with clock.stage("candidates"):
-        ranking = finder.rank(shells=not finder.shells_later)
+        ranking = finder.rank()
     confirmed = _confirmed(finder, ranking, clock)
-    if confirmed is None and finder.shells_later:
-        with clock.stage("candidates"):  # two scans: the shells' peaks join the EGI's
-            ranking = finder.rank()
-        confirmed = _confirmed(finder, ranking, clock)
     if confirmed is None and finder.sweeps:
         with clock.stage("sweep"):  # two scans: the sweep of SO(3) joins the candidates
             ranking = finder.rank(sweep=True)

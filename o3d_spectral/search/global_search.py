@@ -8,9 +8,7 @@ turn:
    placed by phase correlation and ranked by its peak height
    (:mod:`o3d_spectral.search.placement`); in a scene, the fixed EGI is then focused on a
    ball about each of the best distinct places and searched again there; between two
-   scans the generators join in turn, cheapest first, each ranking confirmed before the
-   next (:attr:`GlobalSearch.shells_later`): the EGI's peaks, then the shells', then
-   (``sweep=True``) the sweep of SO(3);
+   scans, with ``sweep=True``, the sweep of SO(3) joins the candidates;
 2. :meth:`GlobalSearch.confirm` — the best placed pose polished briefly and confirmed by
    its fit and its closeness against distinct rivals (:mod:`o3d_spectral.search.confirmation`);
 3. :meth:`GlobalSearch.climb` — otherwise the best few climbed by the law and ranked by
@@ -68,8 +66,6 @@ class SearchState:
     ----------
     candidates : list of Candidate or None
         The EGI's (and between two scans the shells') candidates, once made.
-    shelled : bool
-        Whether the shells' candidates are among them.
     placements : Placements
         Coarse scores and placements by candidate key.
     fits : dict
@@ -78,7 +74,6 @@ class SearchState:
     """
 
     candidates: list[Candidate] | None = None
-    shelled: bool = False
     placements: Placements = field(default_factory=Placements)
     fits: dict[tuple, Fit] = field(default_factory=dict)
 
@@ -114,14 +109,6 @@ class GlobalSearch:
         return self.situation.two_scans and self.option.sweep_rotations > 0
 
     @property
-    def shells_later(self) -> bool:
-        """Whether the shells' candidates join only where the EGI's confirm nothing
-        (:meth:`rank` with ``shells=False`` first): two scans, shells and the
-        confirmation on. Turntable pairs 45-135 degrees apart mostly confirm on the EGI's
-        peaks alone (the candidates stage 0.07-0.09 -> 0.04 s, the same poses)."""
-        return self.situation.two_scans and self.option.shell_hypotheses > 0 and self.confirms
-
-    @property
     def confirms(self) -> bool:
         """Whether :meth:`confirm` applies: ``option.confirm``, and not in a scene."""
         return self.option.confirm and not self.situation.scene
@@ -140,21 +127,17 @@ class GlobalSearch:
                              self.stepper.target_normals)
         return thinned(fixed, FIXED_CELL * self.stepper.voxel_size)
 
-    def rank(self, *, shells: bool = True, sweep: bool = False) -> Ranking:
-        """The candidates placed and (in a scene) focused, best placed first; between two
-        scans the shells' candidates among them unless ``shells`` is False (once added,
-        they stay), and with ``sweep`` the sweep's."""
+    def rank(self, *, sweep: bool = False) -> Ranking:
+        """The candidates placed and (in a scene) focused, best placed first."""
         stepper, moving, option = self.stepper, self.moving, self.option
         if self.state.candidates is None:
             candidates = egi_candidates(stepper, moving, option)
             if option.egi_focus and self.situation.scene:  # they only find the places
                 candidates = candidates[: option.scene_hypotheses]
-            self.state.candidates = candidates
-        if shells and not self.state.shelled:
-            self.state.shelled = True
             if self.situation.two_scans and option.shell_hypotheses:
-                self.state.candidates = self.state.candidates + shell_candidates(
-                    stepper.target_points, moving.points, option.shell_hypotheses)
+                candidates += shell_candidates(stepper.target_points, moving.points,
+                                               option.shell_hypotheses)
+            self.state.candidates = candidates
         candidates = list(self.state.candidates)
         if sweep and self.sweeps:
             candidates += swept_candidates(stepper, moving, option.sweep_rotations,
