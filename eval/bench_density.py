@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
-from o3d_spectral.harness.writers import write_rows
+from o3d_spectral.harness.writers import write_figure, write_rows
 from o3d_spectral.plots import pyplot
 from o3d_spectral.stages import GLOBAL_STAGES
 from o3d_spectral.synthetic.instance import SceneOptions
@@ -293,9 +293,7 @@ def figure(summary: list[dict], path: Path) -> None:
     ax.set_ylabel("median seconds per call (one thread)")
     ax.set_title("Time against raw density, turntable pairs")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path)
     plt.close(fig)
 
 

@@ -46,6 +46,7 @@ from bench_speed import CALLS, METHODS, Task  # noqa: E402  (sets one Open3D thr
 
 from o3d_spectral import SpectralStepper  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
+from o3d_spectral.harness.writers import write_figure  # noqa: E402
 
 CASE = "ycbv_frame_025_mug"
 JITTER = 0.0005
@@ -108,9 +109,7 @@ def figure(rows: list[dict], path: Path) -> None:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend()
     fig.suptitle(f"{CASE}: time per call, one thread")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path)
 
 
 def main() -> None:

@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from o3d_spectral.harness.metrics import instance_metrics  # noqa: E402
-from o3d_spectral.harness.writers import write_rows  # noqa: E402
+from o3d_spectral.harness.writers import write_figure, write_rows  # noqa: E402
 from o3d_spectral.synthetic.wide import wide_scene_instance  # noqa: E402
 
 LABELS = {"spectral_global": "spectral global", "fpfh_ransac_lean": "lean FPFH-RANSAC",
@@ -75,9 +75,7 @@ def figure(rows: list[dict], path: Path) -> None:
     ax.set_ylabel("median seconds per call (one thread)")
     ax.set_title("One object's view against a tabletop of growing width")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path)
 
 
 def main() -> None:

@@ -1,5 +1,6 @@
 """Result tables (:class:`~o3d_spectral.harness.tables.Table`) as GitHub Markdown,
-LaTeX booktabs and CSV files; rows of dicts as a CSV file (the benchmarks' raw rows)."""
+LaTeX booktabs and CSV files; rows of dicts as a CSV file (the benchmarks' raw rows); a
+benchmark's figure as a PNG file."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 
 from o3d_spectral.harness.tables import Table
 
-__all__ = ["to_latex", "to_markdown", "write_table", "write_rows"]
+__all__ = ["to_latex", "to_markdown", "write_table", "write_rows", "write_figure"]
 
 
 def _cell(value, kind: str, *, latex: bool) -> str:
@@ -95,3 +96,12 @@ def write_rows(path: Path, rows: list[dict]) -> None:
         writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
+
+
+def write_figure(fig, path: Path) -> Path:
+    """A matplotlib figure laid out tightly and written to ``path`` (its folder made) at
+    120 dpi, the benchmarks' figures' resolution."""
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path
