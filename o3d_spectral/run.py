@@ -154,14 +154,15 @@ def finish(
             result.target_viewpoint += run.offset
     voxel_size = run.stepper.voxel_size
     source, target = to_legacy(run.source), to_legacy(run.target)
+    fixed = with_normals(target, *run.fixed_normals)  # the polish's and the measure's
     if refinement is not None:
-        transformation = refined(run, source, target, transformation, refinement)
+        transformation = refined(run, source, fixed, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
     distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
     near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
-    _measured(run, result, target, transformation)
+    _measured(run, result, fixed, transformation)
     result.warnings = registration_warnings(
         converged=best.converged, max_iteration=run.criteria.max_iteration,
         readings={"source": result.source_reading, "target": result.target_reading},
@@ -189,7 +190,7 @@ def finish(
 
 
 def _measured(
-    run: Run, result: SpectralRegistrationResult, target: o3d.geometry.PointCloud,
+    run: Run, result: SpectralRegistrationResult, fixed: o3d.geometry.PointCloud,
     transformation: NDArray[np.float64],
 ) -> None:
     """Measure the returned ``transformation`` (4, 4, source to target, the run's frame)
@@ -197,9 +198,10 @@ def _measured(
     result's other hypotheses), the best distinct pose that fits as well
     (:func:`o3d_spectral.verification.ambiguity`), its evidence
     (:func:`o3d_spectral.pose_evidence.pose_evidence`) and the calibrated confidence
-    (:mod:`o3d_spectral.confidence_model`); set them in ``result``."""
+    (:mod:`o3d_spectral.confidence_model`); set them in ``result``. ``fixed``: the
+    target with normals (:func:`o3d_spectral.refinement.with_normals`)."""
     to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
-    fixed = FixedPoints(with_normals(target, *run.fixed_normals))  # one KD-tree for all
+    fixed = FixedPoints(fixed)  # one KD-tree for every fit
     pose = transformation @ to_moving
     others = [M @ to_moving for M, _ in result.hypotheses]
     culls = run.situation.culls
@@ -220,12 +222,12 @@ def _measured(
 
 
 def refined(
-    run: Run, source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud,
+    run: Run, source: o3d.geometry.PointCloud, fixed: o3d.geometry.PointCloud,
     transformation: NDArray[np.float64], refinement: RefinementOption,
 ) -> NDArray[np.float64]:
-    """:func:`o3d_spectral.refinement.refine` against the target near the pose: the part
-    of a scene within the source's size of it (the polish moves the source far less)."""
-    fixed = with_normals(target, *run.fixed_normals)
+    """:func:`o3d_spectral.refinement.refine` against the target with normals (``fixed``)
+    near the pose: the part of a scene within the source's size of it (the polish moves
+    the source far less)."""
     margin = max(extent(run.source.points)[1], REFINEMENT_MARGIN * run.stepper.voxel_size)
     near, kept = near_pose(fixed, run.source.points, transformation, margin)
     if len(kept) == 0:  # nothing within reach: no ICP correspondence, nothing to polish
