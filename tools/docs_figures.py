@@ -25,6 +25,7 @@ import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from statistics import median
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "data"
@@ -393,9 +394,9 @@ def voxel_trial() -> str:
         by = {c: [r for r in mine if r["choice"] == c] for c in ("hand", "suggested", "trial")}
         rate = {c: 100 * sum(r["success"] == "True" for r in v) / len(v) for c, v in by.items()}
         hand_mm = sorted({f"{1000 * float(r['voxel_m']):.0f}" for r in by["hand"]}, key=float)
-        rule_mm = _median([1000 * float(r["voxel_m"]) for r in by["suggested"]])
+        rule_mm = median([1000 * float(r["voxel_m"]) for r in by["suggested"]])
         sizes = [len(r["tried"].split(";")) for r in by["trial"]]
-        seconds = [_median([float(r["seconds"]) for r in by[c]])
+        seconds = [median([float(r["seconds"]) for r in by[c]])
                    for c in ("hand", "suggested", "trial")]
         lines.append([group, str(len(by["trial"])), ", ".join(hand_mm), f"{rule_mm:.1f}",
                       *(f"{rate[c]:.1f}%" for c in ("hand", "suggested", "trial")),
@@ -410,12 +411,6 @@ def voxel_trial() -> str:
         provenance("voxel_advice_trial") + " Success: symmetry-aware, 5 degrees and 1 cm; "
         "times (the registrations, as the script reports them) on 2 shared cores.",
     ])
-
-
-def _median(values: list[float]) -> float:
-    ordered = sorted(values)
-    middle = len(ordered) // 2
-    return ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2
 
 
 #: Where ``eval/recall_generators.py`` can lose the truth, in the search's order.
