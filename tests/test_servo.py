@@ -1,5 +1,8 @@
 """Simulated visual servoing: the arm's kinematics, the twist-to-joint mapping, a short run."""
 
+import csv
+import json
+
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -153,6 +156,7 @@ def test_gradient_test_waits_for_the_finest_smoothing_level(arm):
     assert run.converged
     assert len(run.cycles) >= 2
     assert run.cycles[0].rotation_correction < options.rotation_tolerance
+    assert run.cycles[0].searched and not run.cycles[-1].searched  # handed over at once
 
 
 def test_joint_limits_hold_when_the_twist_pushes_past_them(arm):
@@ -185,3 +189,29 @@ def test_servo_command_rejects_bad_trials(tmp_path, capsys):
     assert "--trials" in capsys.readouterr().err
     assert main(["servo", "--workers", "0", "--out", str(tmp_path)]) == 2
     assert "--workers" in capsys.readouterr().err
+
+
+def test_servo_trials_write_their_figures_as_numbers(tmp_path):
+    from o3d_spectral.cli.servo import _write_summary
+
+    rows = [{"seed": seed, "objects": "a b", "start_translation_m": 0.25,
+             "start_rotation_deg": 35.0, "start_visible_fraction": 0.5,
+             "final_translation_m": final_m, "final_rotation_deg": final_deg,
+             "success": success, "converged": True, "cycles": cycles, "time_s": 2.0,
+             "limit_violations": 0, "median_controller_ms": 40.0, "search_cycles": 1}
+            for seed, final_m, final_deg, success, cycles in (
+                (3, 0.001, 0.1, True, 20), (4, 0.002, 0.3, True, 30), (5, 0.009, 2.0, False, 40))]
+    cycles = [(0.04, False), (0.05, False), (2.0, True), (1.5, True), (0.03, False)]
+    _write_summary(rows, tmp_path, cycles)
+    figures = json.loads((tmp_path / "summary.json").read_text())
+    assert figures["trials"] == 3 and figures["seeds"] == [3, 5]
+    assert figures["successes"] == 2 and figures["stopped_by_gradient_test"] == 3
+    assert figures["final_translation_mm_median"] == pytest.approx(2.0)
+    assert figures["final_rotation_deg_max"] == pytest.approx(2.0)
+    assert figures["cycles_median"] == 30 and figures["cycles"] == 5
+    assert figures["search_cycles"] == 2
+    assert figures["controller_ms_median"] == pytest.approx(50.0)
+    assert figures["law_controller_ms_median"] == pytest.approx(40.0)
+    assert (figures["search_controller_s_min"], figures["search_controller_s_max"]) == (1.5, 2.0)
+    with (tmp_path / "summary.csv").open() as f:
+        assert [r["seed"] for r in csv.DictReader(f)] == ["3", "4", "5"]

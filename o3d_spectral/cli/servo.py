@@ -24,7 +24,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "an eye-in-hand depth camera starts at least 20 cm and 30 degrees away from the pose "
         "where a reference cloud of a tabletop was captured, and is driven back by the "
         "spectral control law on whole-scene clouds. Writes per-cycle records, the final "
-        "errors and figures; with --trials, one folder per trial and a summary table.",
+        "errors and figures; with --trials, one folder per trial and a summary (summary.md, "
+        "summary.csv per trial, summary.json the run's figures).",
         epilog="examples: o3d-spectral servo --seed 0 --out out/servo\n"
         "          o3d-spectral servo --seed 0 --trials 30 --out out/servo30",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -61,6 +62,7 @@ def _trial_row(trial) -> dict:
         "time_s": final.time,
         "limit_violations": run.limit_violations,
         "median_controller_ms": 1000 * run.median_controller_time(),
+        "search_cycles": sum(c.searched for c in run.cycles),
     }
 
 
@@ -71,12 +73,12 @@ def _write_cycles(run, path: Path) -> None:
                          "translation_correction_m", "rotation_correction_deg",
                          "controller_ms", "points", "camera_x", "camera_y", "camera_z",
                          *[f"q{j}" for j in range(len(run.desired_q))],
-                         *[f"qdot{j}" for j in range(len(run.desired_q))]])
+                         *[f"qdot{j}" for j in range(len(run.desired_q))], "searched"])
         for c in run.cycles:
             writer.writerow([c.time, c.translation_error, np.rad2deg(c.rotation_error),
                              c.translation_correction, np.rad2deg(c.rotation_correction),
                              1000 * c.controller_time, c.points, *c.world_from_camera[:3, 3],
-                             *c.q, *c.qdot])
+                             *c.q, *c.qdot, c.searched])
 
 
 def _write_trial(trial, sensor, out: Path, config: dict) -> dict:
@@ -113,7 +115,54 @@ def _summary(rows: list[dict]) -> dict:
     }
 
 
-def _write_summary(rows: list[dict], out: Path) -> dict:
+def _figures(rows: list[dict], cycles: list[tuple[float, bool]]) -> dict:
+    """The run's figures as numbers, for ``summary.json``.
+
+    Parameters
+    ----------
+    rows : list of dict
+        One row per trial (``summary.csv``'s).
+    cycles : list of (float, bool)
+        Every cycle of every trial: its controller time (seconds) and whether it ran the
+        global search.
+
+    Returns
+    -------
+    dict
+        Counts over the trials; medians and maxima of their final errors and cycles;
+        controller times over all cycles (milliseconds), over the law's cycles, and the
+        range over the global search's (seconds).
+    """
+    t = [1000 * r["final_translation_m"] for r in rows]
+    r = [r["final_rotation_deg"] for r in rows]
+    law = [s for s, searched in cycles if not searched]
+    search = [s for s, searched in cycles if searched]
+    return {
+        "trials": len(rows),
+        "seeds": [min(x["seed"] for x in rows), max(x["seed"] for x in rows)],
+        "successes": sum(x["success"] for x in rows),
+        "stopped_by_gradient_test": sum(x["converged"] for x in rows),
+        "final_translation_mm_median": float(np.median(t)),
+        "final_translation_mm_max": float(max(t)),
+        "final_rotation_deg_median": float(np.median(r)),
+        "final_rotation_deg_max": float(max(r)),
+        "cycles_median": float(np.median([x["cycles"] for x in rows])),
+        "cycles_max": max(x["cycles"] for x in rows),
+        "cycles": len(cycles),
+        "search_cycles": len(search),
+        "limit_violations": sum(x["limit_violations"] for x in rows),
+        "controller_ms_median": 1000 * float(np.median([s for s, _ in cycles])),
+        "law_controller_ms_median": 1000 * float(np.median(law)) if law else None,
+        "search_controller_s_min": min(search) if search else None,
+        "search_controller_s_max": max(search) if search else None,
+        "controller_s_total": float(sum(s for s, _ in cycles)),
+    }
+
+
+def _write_summary(rows: list[dict], out: Path, cycles: list[tuple[float, bool]]) -> dict:
+    """Write ``summary.csv`` (one row per trial), ``summary.json`` (:func:`_figures`) and
+    ``summary.md``; return the printed summary."""
+    (out / "summary.json").write_text(json.dumps(_figures(rows, cycles), indent=2) + "\n")
     with (out / "summary.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -133,9 +182,9 @@ def _write_summary(rows: list[dict], out: Path) -> dict:
     return summary
 
 
-def _trial_job(job: tuple) -> tuple[dict, list[float]]:
-    """Run and write one seeded trial in this process: its summary row and its cycles'
-    controller times (seconds)."""
+def _trial_job(job: tuple) -> tuple[dict, list[tuple[float, bool]]]:
+    """Run and write one seeded trial in this process: its summary row and, per cycle, the
+    controller time (seconds) and whether the cycle ran the global search."""
     from o3d_spectral import servo
 
     seed, options, folder, config = job
@@ -143,7 +192,7 @@ def _trial_job(job: tuple) -> tuple[dict, list[float]]:
     with servo.Arm(world_from_base=servo.WORLD_FROM_BASE) as arm:
         trial = servo.random_trial(seed, arm, sensor, options=options)
     row = _write_trial(trial, sensor, folder, config)
-    return row, [c.controller_time for c in trial.run.cycles]
+    return row, [(c.controller_time, c.searched) for c in trial.run.cycles]
 
 
 def _limit_threads(threads: int) -> None:
@@ -188,9 +237,9 @@ def run(args: argparse.Namespace) -> int:
                                  initializer=_limit_threads, initargs=(share,)) as pool:
             done = list(tqdm(pool.map(_trial_job, jobs), **bar))
     rows = [row for row, _ in done]
-    controller_times = [t for _, times in done for t in times]
+    cycles = [cycle for _, trial_cycles in done for cycle in trial_cycles]
     out = results()
-    median_ms = 1000 * float(np.median(controller_times))
+    median_ms = 1000 * float(np.median([t for t, _ in cycles]))
     for row in rows if args.trials == 1 else []:
         print(f"seed {row['seed']}: start {1000 * row['start_translation_m']:.0f} mm, "
               f"{row['start_rotation_deg']:.1f} deg -> final "
@@ -198,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
               f"deg in {row['time_s']:.1f} s ({row['cycles']} cycles), "
               f"{'converged' if row['converged'] else 'time limit'}", file=out)
     if args.trials > 1:
-        for key, value in _write_summary(rows, args.out).items():
+        for key, value in _write_summary(rows, args.out, cycles).items():
             print(f"{key}: {value}", file=out)
     print(f"controller time per cycle (capture excluded), median: {median_ms:.0f} ms", file=out)
     print(f"wrote {args.out}", file=out)

@@ -131,6 +131,8 @@ class Cycle:
         Points in the captured cloud.
     qdot : ndarray, shape (7,)
         Joint velocities commanded for the next period, rad/s (zero on the last cycle).
+    searched : bool
+        Whether the cycle ran the global search (:attr:`ServoLaw.searching` at its start).
     """
 
     time: float
@@ -143,6 +145,7 @@ class Cycle:
     controller_time: float
     points: int
     qdot: NDArray[np.float64]
+    searched: bool = False
 
 
 @dataclass
@@ -232,6 +235,7 @@ def servo(
         cloud = sensor.capture(scene, pose, rng=rng)
         tic = time.perf_counter()
         finest = law.finest  # the level this cycle's law uses
+        searched = law.searching
         step = law.step(cloud)
         correction_t = float(np.linalg.norm(step.evaluation.translation))
         correction_r = float(np.linalg.norm(step.evaluation.rotation))
@@ -248,7 +252,7 @@ def servo(
         violations += not arm.within_limits(q)
         cycles.append(
             Cycle(k * options.period, q.copy(), pose, *pose_errors(pose, desired),
-                  correction_t, correction_r, elapsed, len(cloud), qdot)
+                  correction_t, correction_r, elapsed, len(cloud), qdot, searched)
         )
         if converged:
             break
