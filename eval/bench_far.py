@@ -22,10 +22,10 @@ Cases:
 Errors: rotation (degrees) and translation at the source's centroid (mm), symmetry-aware
 for the YCB-Video object (``o3d_spectral.harness.real.case_errors``), computed in the
 case's own frame. Prints a markdown table (one row per distance, the spread over the
-distances last) and writes it to ``--out`` when given.
+distances last) and writes it to ``--out`` when given, and its rows to ``--csv``.
 
-Usage: python eval/bench_far.py [--out out/bench_far.md] [--cases mustard_model ...]
-       [--distances 0 1000]
+Usage: python eval/bench_far.py [--out out/bench_far.md] [--csv out/bench_far.csv]
+       [--cases mustard_model ...] [--distances 0 1000]
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from scipy.spatial.transform import Rotation
 
 import o3d_spectral
 from o3d_spectral.harness import real
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.registration import DEFAULT_REFINEMENT
 from o3d_spectral.synthetic import models
 
@@ -128,12 +129,19 @@ def markdown(table: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the markdown table here")
+    parser.add_argument("--csv", type=Path, help="write one row per case and distance here")
     parser.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
     parser.add_argument("--distances", type=float, nargs="+", default=list(DISTANCES),
                         help="metres from the origin")
     args = parser.parse_args()
-    text = markdown(run(tuple(args.cases), tuple(args.distances)))
+    table = run(tuple(args.cases), tuple(args.distances))
+    text = markdown(table)
     print(text)
+    if args.csv:
+        write_rows(args.csv, [
+            {"case": name, "distance_m": d, "polished_deg": a, "polished_mm": b,
+             "law_only_deg": c, "law_only_mm": e}
+            for name, rows in table.items() for d, a, b, c, e in rows])
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text + "\n")

@@ -4,9 +4,11 @@ Runs the law's per-iteration work (``SpectralStepper.evaluate`` and the update, 
 translation searched about the previous prediction as ``law.climb`` does) on the mustard
 bottle at 8 mm voxels and B = 16, single-threaded, and in the same run times two 3D FFTs
 of the same grid (one forward, one inverse: the least any FFT-based iteration does).
-Prints medians over several runs of many iterations each, and the ratios.
+Prints medians over several runs of many iterations each, and the ratios; with ``--out``,
+writes them as one CSV row.
 
 Usage: python eval/bench_iteration.py [--iterations 50] [--runs 5] [--object mustard_bottle]
+       [--out out/bench_iteration.csv]
 """
 
 from __future__ import annotations
@@ -19,11 +21,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import open3d as o3d  # noqa: E402
 
 import o3d_spectral  # noqa: E402
+from o3d_spectral.harness.writers import write_rows  # noqa: E402
 from o3d_spectral.spectra import fft, so3  # noqa: E402
 from o3d_spectral.spectra.target_grid import PRECISION  # noqa: E402
 from o3d_spectral.synthetic import models  # noqa: E402
@@ -47,6 +51,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--voxel-size", type=float, default=0.008)
     parser.add_argument("--bandwidth", type=int, default=16)
+    parser.add_argument("--out", type=Path, help="write the figures here as one CSV row")
     args = parser.parse_args()
 
     o3d.utility.random.seed(0)
@@ -100,6 +105,14 @@ def main() -> None:
     print(f"{'paper (C++, FFTW, FFTSO3)':32s}{PAPER_MS:9.2f}")
     print(f"iteration / two FFTs = {iteration_ms / two_ffts_ms:.2f}x;  "
           f"iteration / paper = {iteration_ms / PAPER_MS:.2f}x")
+    if args.out:
+        write_rows(args.out, [{
+            "object": args.object, "voxel_m": args.voxel_size, "bandwidth": args.bandwidth,
+            "fft_grid": "x".join(map(str, shape)), "fft_backend": fft.backend(shape),
+            "source_voxels": len(moving.points), "iterations": args.iterations,
+            "runs": args.runs, "iteration_ms": iteration_ms,
+            "run_medians_ms": " ".join(f"{m:.4f}" for m in run_medians),
+            "two_ffts_ms": two_ffts_ms, "paper_ms": PAPER_MS}])
 
 
 if __name__ == "__main__":

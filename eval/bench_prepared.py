@@ -7,10 +7,11 @@ each scan with the model cloud itself, and with ``o3d_spectral.prepare(model, 0.
 made once (its time counted in the total); ``--without-normals``: the model's points
 alone, as a scanned model comes, its normals estimated. Both runs alternate ``--repeats`` times; the
 median totals and their ratio are printed, with the successes (5 degrees, 1 cm at the
-model's centroid, symmetry-aware: ``harness.metrics``) of each, which must agree.
+model's centroid, symmetry-aware: ``harness.metrics``) of each, which must agree; with
+``--out``, every timed run as a CSV row.
 
 Usage: python eval/bench_prepared.py --suite out/suites/partial [--object power_drill]
-       [--repeats 3]
+       [--repeats 3] [--without-normals] [--out out/bench_prepared.csv]
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import open3d as o3d
 
 import o3d_spectral
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
+from o3d_spectral.harness.writers import write_rows
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud
 from o3d_spectral.synthetic.suite import load_suite
 from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
@@ -69,6 +71,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--without-normals", action="store_true",
                         help="the model's points alone (its normals estimated)")
+    parser.add_argument("--out", type=Path, help="write every timed run here as a CSV row")
     args = parser.parse_args()
     model = point_cloud(*(a.copy() for a in model_cloud(args.object, 20000)))
     if args.without_normals:
@@ -76,15 +79,20 @@ def main() -> None:
     symmetry = model_symmetry(args.object)
     cases = scans(args.suite, args.object)
     run(model, cases[:1], speed.SUITE_VOXEL, True, symmetry)  # untimed warm-up
-    totals = {False: [], True: []}
-    for _ in range(args.repeats):
+    normals = "estimated" if args.without_normals else "given"
+    totals, rows = {False: [], True: []}, []
+    for repeat in range(args.repeats):
         for prepared in (False, True):
             seconds, ok = run(model, cases, speed.SUITE_VOXEL, prepared, symmetry)
             totals[prepared].append(seconds)
+            rows.append({"object": args.object, "normals": normals, "scans": len(cases),
+                         "repeat": repeat, "prepared": prepared, "seconds": seconds,
+                         "registered": sum(ok)})
             print(f"prepared={prepared}: {seconds:.2f} s, {sum(ok)} of {len(ok)} registered",
                   flush=True)
+    if args.out:
+        write_rows(args.out, rows)
     plain, ready = np.median(totals[False]), np.median(totals[True])
-    normals = "estimated" if args.without_normals else "given"
     print(f"| model | its normals | scans | each call prepares (s) | prepared once (s) | ratio |\n"
           f"| --- | --- | --- | --- | --- | --- |\n"
           f"| {args.object} | {normals} | {len(cases)} | {plain:.2f} | {ready:.2f} "

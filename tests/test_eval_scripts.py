@@ -150,25 +150,37 @@ def test_bench_density(tmp_path):
 
 def test_bench_far(tmp_path):
     run("bench_far.py", "--cases", "mustard_model", "--distances", 0, 1000, "--out",
-        tmp_path / "far.md", cwd=tmp_path)
+        tmp_path / "far.md", "--csv", tmp_path / "far.csv", cwd=tmp_path)
     text = (tmp_path / "far.md").read_text()
     assert text.startswith("**mustard_model**")
     assert [len(table_rows(text, d)) for d in ("0", "1000", "spread")] == [1, 1, 1]
     assert len(table_rows(text, "spread")[0]) == 5
+    rows = read_csv(tmp_path / "far.csv")
+    assert [(r["case"], float(r["distance_m"])) for r in rows] == [
+        ("mustard_model", 0.0), ("mustard_model", 1000.0)]
+    assert f"{float(rows[1]['polished_deg']):.3f}" == table_rows(text, "1000")[0][1]
 
 
 def test_bench_iteration(tmp_path):
-    printed = run("bench_iteration.py", "--iterations", 3, "--runs", 1, cwd=tmp_path)
+    printed = run("bench_iteration.py", "--iterations", 3, "--runs", 1, "--out",
+                  tmp_path / "iteration.csv", cwd=tmp_path)
     assert re.search(r"one iteration \(median\)\s+\d+\.\d\d", printed)
     assert re.search(r"two 3D FFTs of the same grid\s+\d+\.\d\d", printed)
     assert "iteration / two FFTs = " in printed
+    [row] = read_csv(tmp_path / "iteration.csv")
+    assert (row["object"], row["bandwidth"], row["iterations"]) == ("mustard_bottle", "16", "3")
+    assert f"{float(row['iteration_ms']):.2f}" in printed
 
 
 def test_bench_large(tmp_path):
-    printed = run("bench_large.py", "--points", 20000, "--profile", cwd=tmp_path)
+    printed = run("bench_large.py", "--points", 20000, "--profile", "--out",
+                  tmp_path / "large.csv", cwd=tmp_path)
     assert re.search(r"^20000 points: [\d.]+ s; error [\d.]+ deg, [\d.]+ mm; fitness", printed,
                      re.MULTILINE)
     assert re.search(r"^  climb\s+[\d.]+ s$", printed, re.MULTILINE)
+    [row] = read_csv(tmp_path / "large.csv")
+    assert (row["points"], row["profiled"]) == ("20000", "True")
+    assert f"{float(row['seconds']):.1f} s" in printed
 
 
 def test_bench_multiway(tmp_path):
@@ -188,9 +200,12 @@ def test_bench_prepared(suites, tmp_path):
 
     name = load_suite(suites / "partial")[0].object
     printed = run("bench_prepared.py", "--suite", suites / "partial", "--object", name,
-                  "--repeats", 1, cwd=tmp_path)
+                  "--repeats", 1, "--out", tmp_path / "prepared.csv", cwd=tmp_path)
     assert [row[:3] for row in table_rows(printed, name)] == [[name, "given", "1"]]
     assert re.search(r"prepared=True: [\d.]+ s, \d of 1 registered", printed)
+    rows = read_csv(tmp_path / "prepared.csv")
+    assert [(r["normals"], r["repeat"], r["prepared"], r["scans"]) for r in rows] == [
+        ("given", "0", "False", "1"), ("given", "0", "True", "1")]
 
 
 def test_bench_pyramid(suites, tmp_path):
