@@ -32,11 +32,12 @@ def turned(pose: np.ndarray, degrees: float) -> np.ndarray:
 
 
 def counted_icp(monkeypatch) -> list:
-    """The cut (or whole) point counts of each ICP :func:`polish_within_reach` runs."""
+    """The cut (or whole) point count and the start of each ICP :func:`polish_within_reach`
+    runs."""
     calls = []
 
     def icp(source, target, max_distance, init, cut_from=None):
-        calls.append(len(source.points))
+        calls.append((len(source.points), init))
         return point_to_plane_icp(source, target, max_distance, init, cut_from)
 
     monkeypatch.setattr(refinement, "point_to_plane_icp", icp)
@@ -51,17 +52,42 @@ def test_the_cut_polish_is_the_whole_sources_icp_to_the_bit(scans, monkeypatch):
     cut = polish_within_reach(source, target, cKDTree(np.asarray(target.points)), DISTANCE,
                               start)
     np.testing.assert_array_equal(cut, whole)
-    assert len(calls) == 1 and calls[0] < len(source.points) / 2  # most of the scan left out
+    assert len(calls) == 1 and calls[0][0] < len(source.points) / 2  # most left out
 
 
-def test_a_pose_that_moves_a_point_left_out_beyond_reach_is_polished_whole(scans, monkeypatch):
+def moves_beyond_reach(source, start: np.ndarray, pose: np.ndarray) -> bool:
+    """Whether ``pose`` moves some point of ``source`` by over the reach from ``start``."""
+    moved = np.asarray(source.points) @ (pose[:3, :3] - start[:3, :3]).T
+    return np.max(np.linalg.norm(moved + pose[:3, 3] - start[:3, 3], axis=1)) > REACH * DISTANCE
+
+
+def test_a_pose_that_moves_a_point_left_out_beyond_reach_is_cut_again(scans, monkeypatch):
     source, target, truth = scans
-    start = turned(truth, 8.0)  # the ICP moves the scan's far end by more than the reach
+    start = turned(truth, 4.0)  # the ICP moves the scan's far end by more than the reach
     whole = point_to_plane_icp(source, target, DISTANCE, start)
-    moved = np.asarray(source.points) @ (whole[:3, :3] - start[:3, :3]).T
-    assert np.max(np.linalg.norm(moved + whole[:3, 3] - start[:3, 3], axis=1)) > REACH * DISTANCE
+    assert moves_beyond_reach(source, start, whole)
     calls = counted_icp(monkeypatch)
     cut = polish_within_reach(source, target, cKDTree(np.asarray(target.points)), DISTANCE,
                               start)
-    np.testing.assert_array_equal(cut, whole)
-    assert calls[-1] == len(source.points)  # run again on the whole scan
+    assert 1 < len(calls) <= refinement.RECUTS
+    assert all(count < len(source.points) for count, _ in calls)  # never the whole scan
+    # the whole scan's ICP from where the last cut was made, to the bit
+    np.testing.assert_array_equal(
+        cut, point_to_plane_icp(source, target, DISTANCE, calls[-1][1]))
+    # and where the whole scan's ICP from the start ends, within a hundredth of a degree
+    turn = cut[:3, :3] @ whole[:3, :3].T
+    assert np.degrees(np.arccos(min(1.0, (np.trace(turn) - 1) / 2))) < 0.01
+    assert np.linalg.norm(cut[:3, 3] - whole[:3, 3]) < 2e-5  # metres
+
+
+def test_the_whole_source_is_polished_once_the_cuts_are_spent(scans, monkeypatch):
+    source, target, truth = scans
+    start = turned(truth, 4.0)
+    monkeypatch.setattr(refinement, "RECUTS", 1)
+    calls = counted_icp(monkeypatch)
+    cut = polish_within_reach(source, target, cKDTree(np.asarray(target.points)), DISTANCE,
+                              start)
+    assert [count for count, _ in calls][-1] == len(source.points)
+    reached = calls[-1][1]  # the first cut's pose, beyond reach of the start
+    assert moves_beyond_reach(source, start, reached)
+    np.testing.assert_array_equal(cut, point_to_plane_icp(source, target, DISTANCE, reached))
