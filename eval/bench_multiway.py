@@ -15,10 +15,11 @@ one voxel, no rival):
 A scan is placed right when its pose is within 5 degrees and 1 cm (at its centroid) of
 the truth, allowing a model's symmetry group (in the first scan's frame: a symmetric
 object's scans are placed up to it). Prints a Markdown table, writes ``rows.csv`` (one
-row per scan), ``summary.csv`` and ``table.md`` to ``--out``, and with ``--docs`` the
-table between the markers of that page::
+row per scan), ``summary.csv`` and ``table.md`` to ``--out`` (``docs/data/multiway``:
+``tools/docs_figures.py`` renders the table of ``docs/multiway.md`` from its
+``summary.csv``)::
 
-    python eval/bench_multiway.py --out out/multiway --docs docs/multiway.md
+    python eval/bench_multiway.py --out docs/data/multiway
     python eval/bench_multiway.py --limit-scans 3 --models 1 --seeds 1 --out /tmp/mw
 """
 
@@ -52,7 +53,6 @@ PIPELINES = ("spectral", "fpfh_ransac_lean")
 DRAGON_VOXEL, TURNTABLE_VOXEL = 0.005, 0.008
 VIEWS, AZIMUTH_STEP, ELEVATION, DISTANCE = 8, 45.0, 30.0, 0.45
 MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
-BEGIN, END = "<!-- BEGIN GENERATED: by eval/bench_multiway.py -->", "<!-- END GENERATED -->"
 
 
 def dragon_set(seed: int, limit: int) -> tuple[list, list, list]:
@@ -202,14 +202,13 @@ def main(argv: list[str] | None = None) -> int:
                         help="MultiwayOption(refine=True): ICP from the optimised poses, "
                         "optimised again")
     parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
-    parser.add_argument("--docs", type=Path, help="page whose generated block gets the table")
     args = parser.parse_args(argv)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)  # stdout: the table
     if args.limit_scans < 2:
         parser.error("--limit-scans must be at least 2")
     command = "python eval/bench_multiway.py " + " ".join(
         a for a in (argv if argv is not None else sys.argv[1:]))
-    command = re.sub(r"--out \S+", "--out OUT", re.sub(r" --docs \S+", "", command))
+    command = re.sub(r"--out \S+", "--out OUT", command)
     commit, rows, times = _commit(), [], {}
     option = o3d_spectral.MultiwayOption(workers=args.workers, refine=args.refine)
     for suite, name, seed, clouds, truths, symmetries, voxel in sets(args):
@@ -226,11 +225,6 @@ def main(argv: list[str] | None = None) -> int:
     write_rows(args.out / "rows.csv", rows)
     write_rows(args.out / "summary.csv", summaries)
     (args.out / "table.md").write_text(text)
-    if args.docs:
-        page = args.docs.read_text()
-        before, rest = page.split(BEGIN, 1)
-        page = before + BEGIN + "\n" + text + rest[rest.index(END):]
-        args.docs.write_text(page)
     print(text, end="")
     return 0
 

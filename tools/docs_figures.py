@@ -479,6 +479,33 @@ def readme_speed() -> str:
     ])
 
 
+#: ``eval/bench_multiway.py``'s pipelines, in its table's order.
+MULTIWAY_PIPELINES = ("spectral", "fpfh_ransac_lean")
+
+
+def multiway() -> str:
+    """Scans placed right of each set, and seconds per set, for both pipelines: from
+    ``eval/bench_multiway.py``'s ``summary.csv``."""
+    rows = {(r["suite"], r["set"], r["pipeline"]): r for r in read_csv("multiway")}
+    suites = list(dict.fromkeys(suite for suite, _, _ in rows))
+    sets = sorted(dict.fromkeys((suite, name) for suite, name, _ in rows),
+                  key=lambda key: (suites.index(key[0]), key[1] == "all"))
+    lines = []
+    for suite, name in sets:
+        cells = []
+        for pipeline in MULTIWAY_PIPELINES:
+            r = rows[suite, name, pipeline]
+            right, scans = int(r["right"]), int(r["scans"])
+            cells += [f"{right}/{scans} ({100 * right / scans:.0f}%)", f"{float(r['seconds']):.1f}"]
+        lines.append([suite, f"**{name}**" if name == "all" else name, *cells])
+    return "\n".join([
+        table(["suite", "set", *(f"{p}: {k}" for p in MULTIWAY_PIPELINES for k in ("right", "s"))],
+              lines),
+        "",
+        provenance("multiway") + " Every scan's errors: `docs/data/multiway/rows.csv`.",
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -496,6 +523,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "voxel-trial": voxel_trial,
     "readme-speed": readme_speed,
     "recall": recall,
+    "multiway": multiway,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
