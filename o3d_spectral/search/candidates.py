@@ -32,6 +32,7 @@ from ..stepper import MovingCloud, SpectralStepper
 __all__ = [
     "Candidate", "egi_candidates", "shell_candidates", "swept_candidates", "span_factor",
     "placed_peaks", "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS", "SWEEP_SENSOR_ANGLE",
+    "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
 ]
 
 #: Calibrated constants of the sweep between two scans (dragon scans 48-96 degrees apart).
@@ -45,6 +46,14 @@ SWEEP_FACTOR = 3.0
 SWEEP_SPAN = 18.0
 #: The sweep's rotations that join the other candidates.
 SWEEP_PLACEMENTS = 16
+#: The sweep ranks its rotations first on a grid this many times coarser again (a quarter
+#: of the FFT's cells there, 20-27 cells a side on the dragon scans) ...
+SWEEP_PRESELECT_FACTOR = 2.0
+#: ... and places only this many best of them on its own grid: the dragon pairs 24-120
+#: degrees apart and the turntable pairs 45-135 degrees apart (two rotations each, 78
+#: pairs) keep the same 16 best and the same poses, at 0.7 times the sweep's time (its
+#: cost per rotation, turning, culling and splatting the cloud, stays).
+SWEEP_PRESELECTED = 128
 #: Largest angle (radians) between the two views' sensor directions the sweep tries (from
 #: the normals: 62-86 degrees on dragon scans 48-72 degrees apart, 99-107 at 96 and
 #: 123-127 at 120): views further apart share under a quarter of their hemispheres of
@@ -125,8 +134,11 @@ def swept_candidates(
 
     Of the ``count`` rotations of :func:`o3d_spectral.spectra.so3.uniform_rotations`, those
     that turn the moving view's sensor direction within :data:`SWEEP_SENSOR_ANGLE` of the
-    fixed view's are placed on a grid of :data:`SWEEP_FACTOR` voxels (coarser for a moving
-    cloud over :data:`SWEEP_SPAN` of those across), on ``workers`` threads. Two scans far
+    fixed view's are ranked on a grid :data:`SWEEP_PRESELECT_FACTOR` times coarser than
+    the sweep's own of :data:`SWEEP_FACTOR` voxels (coarser for a moving cloud over
+    :data:`SWEEP_SPAN` of those across), and the :data:`SWEEP_PRESELECTED` best are placed
+    on the sweep's grid (coarse to fine, as the placements are ranked), on ``workers``
+    threads. Two scans far
     enough apart share too little of their normals for the EGI's peaks to hold their
     rotation; the peak of a phase correlation, which compares the shapes themselves, is
     highest there.
@@ -136,7 +148,13 @@ def swept_candidates(
     kept = np.flatnonzero(toward >= np.cos(SWEEP_SENSOR_ANGLE))
     rotations = rotations[kept]
     factor = max(SWEEP_FACTOR, span_factor(stepper.voxel_size, moving.radius, SWEEP_SPAN))
-    scores = placed_peaks(stepper, moving, rotations, factor, workers)
+    preselected = np.arange(len(rotations))
+    if len(rotations) > SWEEP_PRESELECTED:
+        coarse = placed_peaks(stepper, moving, rotations, SWEEP_PRESELECT_FACTOR * factor,
+                              workers)
+        preselected = np.sort(np.argsort(-coarse, kind="stable")[:SWEEP_PRESELECTED])
+    scores = np.full(len(rotations), -np.inf)
+    scores[preselected] = placed_peaks(stepper, moving, rotations[preselected], factor, workers)
     best = np.argsort(-scores, kind="stable")[:SWEEP_PLACEMENTS]
     return [Candidate(("sweep", int(kept[i])), rotations[i], float(scores[i])) for i in best]
 
