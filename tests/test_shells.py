@@ -14,7 +14,12 @@ from o3d_spectral.harness.real import (
     rotation_seed,
 )
 from o3d_spectral.spectra import so3, so3fft
-from o3d_spectral.spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
+from o3d_spectral.spectra.shells import (
+    SHELL_BANDWIDTH,
+    magnitude_spectrum,
+    shell_coefficients,
+    shell_voxel,
+)
 
 
 def _object(rng: np.random.Generator) -> np.ndarray:
@@ -27,6 +32,14 @@ def _object(rng: np.random.Generator) -> np.ndarray:
         u[np.arange(2000), face] = np.sign(u[np.arange(2000), face]) * 0.5
         parts.append(u * size + offset)
     return np.concatenate(parts)
+
+
+@pytest.mark.parametrize("n", [8, 64])
+def test_the_magnitude_from_the_half_spectrum_is_the_whole_transforms(rng, n):
+    grid = rng.random((n, n, n))
+    np.testing.assert_allclose(magnitude_spectrum(grid),
+                               np.abs(np.fft.fftshift(np.fft.fftn(grid))), rtol=1e-12,
+                               atol=1e-12 * n**3)
 
 
 def test_shells_do_not_see_a_translation(rng):
