@@ -506,6 +506,99 @@ def multiway() -> str:
     ])
 
 
+def servo_figures(name: str = "servo") -> dict[str, str]:
+    """The figures of ``o3d-spectral servo --trials``' ``summary.json`` (source ``name``),
+    formatted as the docs quote them."""
+    f = json.loads((DATA / sources()[name]["file"]).read_text())
+    return {
+        "trials": str(f["trials"]), "successes": str(f["successes"]),
+        "seeds": "-".join(map(str, f["seeds"])), "stopped": str(f["stopped_by_gradient_test"]),
+        "mm": f"{f['final_translation_mm_median']:.2f} / {f['final_translation_mm_max']:.2f}",
+        "deg": f"{f['final_rotation_deg_median']:.3f} / {f['final_rotation_deg_max']:.3f}",
+        "cycles": f"{f['cycles_median']:.0f}", "all_cycles": str(f["cycles"]),
+        "search_cycles": str(f["search_cycles"]), "violations": str(f["limit_violations"]),
+        "ms": f"{f['controller_ms_median']:.0f}", "law_ms": f"{f['law_controller_ms_median']:.0f}",
+        "search_s": f"{f['search_controller_s_min']:.1f}-{f['search_controller_s_max']:.1f}",
+    }
+
+
+def servo() -> str:
+    """docs/servo.md's results table: the 30 seeded trials of the stored servo run."""
+    f = servo_figures()
+    return "\n".join([
+        table(["measure", "value"], [
+            ["success (final camera error <= 5 mm and <= 1 deg)",
+             f"{f['successes']} of {f['trials']}"],
+            ["stopped by the gradient test", f["stopped"]],
+            ["final translation error, median / max (mm)", f["mm"]],
+            ["final rotation error, median / max (deg)", f["deg"]],
+            ["cycles, median", f["cycles"]],
+            ["joint-limit violations (cycles)", f["violations"]],
+            ["controller time per cycle (capture excluded), median",
+             f"{f['ms']} ms (the law's cycles: {f['law_ms']} ms; {f['search_cycles']} of the "
+             f"{f['all_cycles']} cycles ran the global search, {f['search_s']} s each)"]]),
+        "",
+        provenance("servo") + " Per trial: `docs/data/servo_trials.csv`.",
+    ])
+
+
+def servo_results() -> str:
+    """results.md's servoing paragraph, from the stored servo run."""
+    f = servo_figures()
+    return (
+        f"{f['successes']} of {f['trials']} trials end within 5 mm and 1 degree (final "
+        f"errors median / max {f['mm']} mm and {f['deg']} deg) in {f['cycles']} cycles "
+        f"median, the controller's time per cycle {f['ms']} ms median (the law's cycles "
+        f"{f['law_ms']} ms, the global search's {f['search_s']} s). {provenance('servo')}"
+    )
+
+
+def servo_seed() -> str:
+    """docs/servo.md's seed-0 trial (its figures are the run folder's ``seed_0000/``)."""
+    r = next(r for r in read_csv("servo_trials") if r["seed"] == "0")
+    return (
+        f"Seed 0 of that run (`o3d-spectral servo --seed 0 --out out/servo` runs it alone): "
+        f"{1000 * float(r['start_translation_m']):.0f} mm and "
+        f"{float(r['start_rotation_deg']):.1f} deg away, "
+        f"{100 * float(r['start_visible_fraction']):.0f}% of the first object in view at "
+        f"the start; final {1000 * float(r['final_translation_m']):.2f} mm and "
+        f"{float(r['final_rotation_deg']):.3f} deg after {float(r['time_s']):.1f} s "
+        f"({r['cycles']} cycles). The figures below are its folder's (`seed_0000/`). "
+        + provenance("servo_trials")
+    )
+
+
+def servo_unseen() -> str:
+    """docs/servo.md's unseen seeds: the same run on the next 30 seeds, and the trials
+    that fall short."""
+    f, rows = servo_figures("servo_unseen"), read_csv("servo_unseen_trials")
+    short = [r for r in rows if r["success"] != "True"]
+    mm = [1000 * float(r["final_translation_m"]) for r in short]
+    deg = [float(r["final_rotation_deg"]) for r in short]
+    stopped = sum(r["converged"] == "True" for r in short)
+    misses = (
+        f": seeds {', '.join(r['seed'] for r in short)} end {min(mm):.1f}-{max(mm):.1f} mm "
+        f"and {min(deg):.1f}-{max(deg):.1f} deg off, {stopped} of them stopped by the "
+        f"gradient test (the law's fixed point on those scenes, not the truth)" if short else "")
+    return (
+        f"**Unseen seeds.** On seeds {f['seeds']}, not used to choose anything, "
+        f"{f['successes']} of {f['trials']} end within 5 mm and 1 deg{misses}. "
+        + provenance("servo_unseen")
+    )
+
+
+def readme_servo() -> str:
+    """README's servoing line, from the stored servo run."""
+    f = servo_figures()
+    commit = sources()["servo"]["commit"]
+    return (
+        f"Simulated visual servoing of a KUKA iiwa, {f['trials']} random starts: "
+        f"{f['successes']} of {f['trials']} within 5 mm and 1 deg, {f['ms']} ms a cycle "
+        f"(median; measured at commit {commit}, stored in `docs/data/`; "
+        f"[docs/servo.md](docs/servo.md))."
+    )
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -524,6 +617,11 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "readme-speed": readme_speed,
     "recall": recall,
     "multiway": multiway,
+    "servo": servo,
+    "servo-results": servo_results,
+    "readme-servo": readme_servo,
+    "servo-seed": servo_seed,
+    "servo-unseen": servo_unseen,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
