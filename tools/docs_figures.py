@@ -599,6 +599,89 @@ def readme_servo() -> str:
     )
 
 
+def _width() -> str:
+    """The width bench's result: per method, median seconds at the narrowest and the widest
+    scene and the successes per width; the width from which both FPFH-RANSACs are slower."""
+    rows = read_csv("width")
+    widths = sorted({float(r["width_m"]) for r in rows})
+    names = {"spectral_global": "spectral", "fpfh_ransac_lean": "lean FPFH-RANSAC",
+             "fpfh_ransac": "tutorial FPFH-RANSAC"}
+    seconds, parts = {}, []
+    for method, name in names.items():
+        mine = [r for r in rows if r["method"] == method]
+        at = [[r for r in mine if float(r["width_m"]) == w] for w in widths]
+        seconds[method] = [median(float(r["seconds"]) for r in rs) for rs in at]
+        wins = " / ".join(str(sum(r["success"] == "True" for r in rs)) for rs in at)
+        parts.append(f"{name} {seconds[method][0]:.1f} s to {seconds[method][-1]:.1f} s "
+                     f"({wins})")
+    slower = [w for i, w in enumerate(widths) if all(
+        seconds[m][j] > seconds["spectral_global"][j]
+        for m in ("fpfh_ransac_lean", "fpfh_ransac") for j in range(i, len(widths)))]
+    n = len({r["seed"] for r in rows})
+    return (f"median {', '.join(parts)}: successes of {n} per width; both FPFH-RANSACs "
+            + (f"slower from {slower[0]:g} m on" if slower else "faster at every width"))
+
+
+def _prepared(name: str) -> tuple[float, str]:
+    """Prepared once over prepared per call (ratio of the median totals), and the scans
+    registered each way."""
+    rows = read_csv(name)
+    seconds = {p: median(float(r["seconds"]) for r in rows if r["prepared"] == p)
+               for p in ("False", "True")}
+    registered = "/".join(sorted({r["registered"] for r in rows}))
+    return seconds["True"] / seconds["False"], f"{registered} / {rows[0]['scans']}"
+
+
+def timings() -> str:
+    """results.md's other timings: one law iteration, the width bench, a prepared model,
+    two large clouds."""
+    it, large = read_csv("iteration")[0], read_csv("large")[0]
+    points = sorted({int(r["scene_points"]) for r in read_csv("width")})
+    widths = sorted({float(r["width_m"]) for r in read_csv("width")})
+    estimated, given = _prepared("prepared_estimated"), _prepared("prepared_given")
+    iteration = float(it["iteration_ms"])
+    return "\n".join([
+        table(["what", "result"], [
+            [f"one iteration of the law ({it['object'].replace('_', ' ')}, "
+             f"{1000 * float(it['voxel_m']):.0f} mm, B = {it['bandwidth']})",
+             f"{iteration:.2f} ms (the paper: {float(it['paper_ms']):.1f} ms in C++), "
+             f"{iteration / float(it['two_ffts_ms']):.2f} times two single-precision FFTs "
+             f"of the grid"],
+            [f"one view against tabletops {widths[0]:g}-{widths[-1]:g} m wide "
+             f"({round(points[0], -3) // 1000}k-"
+             f"{round(points[-1], -3) // 1000}k points)", _width()],
+            [f"one model against {given[1].split(' / ')[-1]} views, prepared once or per call",
+             f"{estimated[0]:.2f}x the time with estimated normals, {given[0]:.2f}x with given "
+             f"ones; registered {estimated[1]} and {given[1]}"],
+            [f"two clouds of {int(large['points']) / 1e6:g}M points, "
+             f"{100 * float(large['voxel_m']):g} cm voxels, local call at the defaults "
+             f"(every core)",
+             f"{float(large['seconds']):.1f} s"]]),
+        "",
+        provenance("iteration", "width", "prepared_given", "prepared_estimated", "large"),
+    ])
+
+
+def far() -> str:
+    """The pose errors of bench_far's cases at each distance from the origin: at 0 m, and
+    the largest change over the distances."""
+    rows = read_csv("far")
+    keys = ("polished_deg", "polished_mm", "law_only_deg", "law_only_mm")
+    lines = []
+    for case in dict.fromkeys(r["case"] for r in rows):
+        mine = [r for r in rows if r["case"] == case]
+        spread = [max(float(r[k]) for r in mine) - min(float(r[k]) for r in mine) for k in keys]
+        lines.append([case, f"{float(mine[0]['distance_m']):g}-{float(mine[-1]['distance_m']):g}",
+                      *(f"{float(mine[0][k]):.3f}" for k in keys),
+                      " / ".join(f"{x:.3f}" for x in spread)])
+    return "\n".join([
+        table(["case", "distances (m)", "polished: deg", "polished: mm", "law only: deg",
+               "law only: mm", "largest change over the distances (same order)"], lines),
+        "",
+        provenance("far") + " Errors at the nearest distance, in the case's own frame.",
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -622,6 +705,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "readme-servo": readme_servo,
     "servo-seed": servo_seed,
     "servo-unseen": servo_unseen,
+    "timings": timings,
+    "far": far,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
