@@ -288,6 +288,20 @@ def confidence() -> str:
     ])
 
 
+def confidence_misses() -> str:
+    """The wrong poses held back that the warning misses, by group."""
+    pooled = {(r["confidence"], r["part"]): r for r in read_csv("calibrate_confidence_summary")}
+    held = pooled["library", "held back"]
+    missed = [(r["group"], int(r["wrong"]) - int(r["warned_wrong"]))
+              for r in read_csv("calibrate_confidence_groups")]
+    by_group = ", ".join(f"{group} {n}" for group, n in missed if n)
+    return (
+        f"The warning's recall is {100 * float(held['recall']):.0f}%: it misses "
+        f"{int(held['wrong']) - int(held['warned_wrong'])} of the {held['wrong']} wrong poses "
+        f"held back ({by_group}). " + provenance("calibrate_confidence_groups")
+    )
+
+
 #: ``eval/bench_density.py``'s methods, in the docs' order, and how the docs name them.
 DENSITY_METHODS = {"spectral_global": "spectral", "fpfh_ransac_lean": "lean FPFH-RANSAC"}
 #: The stages of ``registration_spectral_global`` in ``eval/bench_density.py``'s summary.
@@ -334,6 +348,35 @@ def density() -> str:
         provenance("density") + " One thread per call, 2 cores shared with other jobs: "
         "times are indicative; every row in `docs/data/density.csv`.",
     ])
+
+
+def density_notes() -> str:
+    """The density run read by method: how time rises from the fewest points to the most,
+    and which models fail at which densities."""
+    rows = {(int(r["multiplier"]), r["method"]): r for r in read_csv("density")}
+    low, high = min(m for m, _ in rows), max(m for m, _ in rows)
+    rise = {m: (float(rows[high, m]["median_ratio_to_1x"]), float(rows[high, m]["max_ratio_to_1x"]))
+            for m in DENSITY_METHODS}
+    faster = float(rows[low, "spectral_global"]["median_s"]) / float(
+        rows[low, "fpfh_ransac_lean"]["median_s"])
+    failed = [r for r in read_csv("density_rows") if r["success"] != "True"]
+    fails = []
+    for model in dict.fromkeys(r["model"] for r in failed):
+        mine = [r for r in failed if r["model"] == model]
+        methods = " and ".join(DENSITY_METHODS[m] for m in dict.fromkeys(r["method"] for r in mine))
+        where = sorted({int(r["multiplier"]) for r in mine})
+        at = "every density" if len(where) == len({m for m, _ in rows}) else \
+            " and ".join(f"{m}x" for m in where)
+        fails.append(f"the {model.replace('_', ' ')} fails for {methods} at {at} "
+                     f"({_spread(_column(mine, 'rotation_error_deg'))} degrees off)")
+    (s_median, s_max), (f_median, f_max) = rise.values()
+    return (
+        f"From {low}x to {high}x the spectral call's time rises by a median {s_median:.2f}x "
+        f"(the largest {s_max:.2f}x), against {f_median:.2f}x (the largest {f_max:.2f}x) for "
+        f"the lean FPFH-RANSAC, whose median time at {low}x is {faster:.1f} times smaller. "
+        f"Success does not follow the density: {'; '.join(fails) or 'no model fails'}. "
+        + provenance("density_rows")
+    )
 
 
 def speed() -> str:
@@ -455,6 +498,87 @@ def recall() -> str:
         "`docs/data/recall_stages.csv`, every pair in "
         "`docs/data/recall_pairs.csv`.",
     ])
+
+
+def _spread(values: list[float], digits: int = 0, scale: float = 1.0) -> str:
+    """``"71-88"`` for values from 71 to 88 (times ``scale``), one figure when all agree."""
+    low, high = (f"{scale * min(values):.{digits}f}", f"{scale * max(values):.{digits}f}")
+    return low if low == high else f"{low}-{high}"
+
+
+def _counted(items: list[str]) -> str:
+    """``"`a` (3), `b` (1)"``: each distinct item and how often, most often first."""
+    counts = sorted(dict.fromkeys(items), key=lambda item: -items.count(item))
+    return ", ".join(f"{item} ({items.count(item)})" for item in counts)
+
+
+#: From these angles (degrees) the recall notes call turntable and dragon pairs far apart.
+FAR_TURNTABLE, FAR_DRAGON = 90, 96
+
+
+def _recall_run(dataset: str) -> tuple[dict[str, list[dict]], list[dict], list[dict]]:
+    """The recall run's rows of ``dataset``: generators' rows by generator, stages' rows,
+    pairs' rows."""
+    generators: dict[str, list[dict]] = {}
+    for r in read_csv("recall_generators"):
+        if r["dataset"] == dataset:
+            generators.setdefault(r["generator"], []).append(r)
+    return (generators, [r for r in read_csv("recall_stages") if r["dataset"] == dataset],
+            [r for r in read_csv("recall_pairs") if r["dataset"] == dataset])
+
+
+def _column(rows: list[dict], key: str) -> list[float]:
+    return [float(r[key]) for r in rows]
+
+
+def _recall_turntable() -> str:
+    generators, stages, pairs = _recall_run("turntable")
+    wrong = [r for r in pairs if r["success"] != "True" and int(r["angle"]) >= FAR_TURNTABLE]
+    objects = _counted([r["pair"].rsplit("_", 1)[0] for r in wrong])
+    lost = _counted([f"`{r['lost_at']}`" for r in wrong])
+    off = max(abs(float(r["final_rotation_deg"]) - int(r["angle"])) for r in wrong)
+    climbs = _spread(_column([r for r in stages if int(r["angle"]) >= FAR_TURNTABLE],
+                             "climbs_right"), scale=100)
+    recall = {g: _spread(_column(rows, "recall_at_all"), scale=100)
+              for g, rows in generators.items()}
+    return (
+        f"On the turntable pairs the shells' peaks hold a right rotation on {recall['shell']}% "
+        f"of pairs at every angle (the first placed at a median rank of "
+        f"{_spread(_column(generators['shell'], 'median_placed_rank'))}), the EGI's on "
+        f"{recall['egi']}%, the sweep's on {recall['sweep']}%, and the search ends right on "
+        f"{_spread(_column(stages, 'success'), scale=100)}% of pairs at every angle. From "
+        f"{FAR_TURNTABLE} degrees the wrong poses are, by object, {objects}; lost at {lost}; "
+        f"each turned from the truth by the turntable's angle, to within {off:.0f} degrees. "
+        f"There the climbs' best is right on {climbs}% of the pairs searched."
+    )
+
+
+def _recall_dragon() -> str:
+    generators, stages, pairs = _recall_run("dragon")
+    far = [r for r in pairs if int(r["angle"]) >= FAR_DRAGON]
+    wrong = [r for r in far if r["success"] != "True"]
+    lost = _counted([f"`{r['lost_at']}`" for r in wrong])
+
+    def each(rows: list[dict], key: str) -> str:
+        return ", ".join(f"{100 * v:.0f}" for v in _column(rows, key))
+
+    return (
+        f"On the dragon pairs {', '.join(r['angle'] for r in stages)} degrees apart the EGI's "
+        f"peaks hold the rotation on {each(generators['egi'], 'recall_at_all')}% of pairs "
+        f"(their nearest a median {_spread(_column(generators['egi'], 'median_nearest_deg'))} "
+        f"degrees off), the shells' on {each(generators['shell'], 'recall_at_all')}%; the "
+        f"climbs' best is right on {each(stages, 'climbs_right')}% of the pairs searched. From "
+        f"{FAR_DRAGON} degrees {len(wrong)} of {len(far)} pairs end wrong, lost at {lost}: "
+        f"the sweep's nearest rotation lies {_spread(_column(wrong, 'sweep_nearest_deg'))} "
+        f"degrees off, and the climbs and the ascent from there leave them "
+        f"{_spread(_column(wrong, 'final_rotation_deg'))} degrees off."
+    )
+
+
+def recall_notes() -> str:
+    """The recall run read pair by pair: what holds the rotation, and where the wrong
+    poses are lost when the scans are far apart."""
+    return "\n".join([_recall_turntable(), "", _recall_dragon(), "", provenance("recall_pairs")])
 
 
 def readme_speed() -> str:
@@ -707,6 +831,9 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "servo-unseen": servo_unseen,
     "timings": timings,
     "far": far,
+    "recall-notes": recall_notes,
+    "density-notes": density_notes,
+    "confidence-misses": confidence_misses,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
