@@ -82,6 +82,29 @@ def test_every_figure_in_the_docs_is_rendered_from_a_stored_output():
             f"python tools/docs_figures.py, not the figures\n{diff}")
 
 
+def test_every_block_is_in_a_doc():
+    figures = docs_figures()
+    used = {m.group(2) for text, _ in figures.rendered().values()
+            for m in figures.BLOCK.finditer(text)}
+    assert used == set(figures.BLOCKS), f"blocks in no doc: {sorted(set(figures.BLOCKS) - used)}"
+
+
+def test_an_edited_figure_fails_the_check(tmp_path, capsys):
+    figures = docs_figures()
+    doc = tmp_path / "results.md"
+    text = (DOCS / "results.md").read_text()
+    doc.write_text(text)
+    figures.DOCS, figures.ROOT = (doc,), tmp_path  # the stored outputs stay docs/data's
+    assert figures.main(["--check"]) == 0
+    edited = text.replace("| full | 240 | 99.6% |", "| full | 240 | 99.7% |", 1)
+    assert edited != text
+    doc.write_text(edited)
+    assert figures.main(["--check"]) == 1
+    assert "-| full | 240 | 99.7% |" in capsys.readouterr().out
+    assert doc.read_text() == edited  # --check changes nothing
+    assert figures.main([]) == 0 and doc.read_text() == text
+
+
 def test_every_stored_output_names_its_file_command_and_commit():
     for name, source in docs_figures().sources().items():
         assert (DOCS / "data" / source["file"]).is_file(), name
