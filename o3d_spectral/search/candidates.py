@@ -52,7 +52,9 @@ SWEEP_PRESELECT_FACTOR = 2.0
 #: ... and places only this many best of them on its own grid: the dragon pairs 24-120
 #: degrees apart and the turntable pairs 45-135 degrees apart (two rotations each, 78
 #: pairs) keep the same 16 best and the same poses, at 0.7 times the sweep's time (its
-#: cost per rotation, turning, culling and splatting the cloud, stays).
+#: cost per rotation, turning, culling and splatting the cloud, stays); over the 144
+#: turntable pairs 30-135 degrees apart, the 16 lose a right rotation on one pair at 45
+#: and one at 60 degrees, which the other generators hold (the same poses).
 SWEEP_PRESELECTED = 128
 #: Largest angle (radians) between the two views' sensor directions the sweep tries (from
 #: the normals: 62-86 degrees on dragon scans 48-72 degrees apart, 99-107 at 96 and
