@@ -192,7 +192,7 @@ def test_servo_command_rejects_bad_trials(tmp_path, capsys):
 
 
 def test_servo_trials_write_their_figures_as_numbers(tmp_path):
-    from o3d_spectral.cli.servo import _write_summary
+    from o3d_spectral.cli.servo import write_summary
 
     rows = [{"seed": seed, "objects": "a b", "start_translation_m": 0.25,
              "start_rotation_deg": 35.0, "start_visible_fraction": 0.5,
@@ -202,7 +202,7 @@ def test_servo_trials_write_their_figures_as_numbers(tmp_path):
             for seed, final_m, final_deg, success, cycles in (
                 (3, 0.001, 0.1, True, 20), (4, 0.002, 0.3, True, 30), (5, 0.009, 2.0, False, 40))]
     cycles = [(0.04, False), (0.05, False), (2.0, True), (1.5, True), (0.03, False)]
-    _write_summary(rows, tmp_path, cycles)
+    write_summary(rows, tmp_path, cycles)
     figures = json.loads((tmp_path / "summary.json").read_text())
     assert figures["trials"] == 3 and figures["seeds"] == [3, 5]
     assert figures["successes"] == 2 and figures["stopped_by_gradient_test"] == 3

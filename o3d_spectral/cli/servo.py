@@ -159,7 +159,7 @@ def _figures(rows: list[dict], cycles: list[tuple[float, bool]]) -> dict:
     }
 
 
-def _write_summary(rows: list[dict], out: Path, cycles: list[tuple[float, bool]]) -> dict:
+def write_summary(rows: list[dict], out: Path, cycles: list[tuple[float, bool]]) -> dict:
     """Write ``summary.csv`` (one row per trial), ``summary.json`` (:func:`_figures`) and
     ``summary.md``; return the printed summary."""
     (out / "summary.json").write_text(json.dumps(_figures(rows, cycles), indent=2) + "\n")
@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
               f"deg in {row['time_s']:.1f} s ({row['cycles']} cycles), "
               f"{'converged' if row['converged'] else 'time limit'}", file=out)
     if args.trials > 1:
-        for key, value in _write_summary(rows, args.out, cycles).items():
+        for key, value in write_summary(rows, args.out, cycles).items():
             print(f"{key}: {value}", file=out)
     print(f"controller time per cycle (capture excluded), median: {median_ms:.0f} ms", file=out)
     print(f"wrote {args.out}", file=out)
