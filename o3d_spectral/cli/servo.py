@@ -98,20 +98,21 @@ def _write_trial(trial, sensor, out: Path, config: dict) -> dict:
     return row
 
 
-def _summary(rows: list[dict]) -> dict:
-    t = np.array([r["final_translation_m"] for r in rows]) * 1000
-    r = np.array([r["final_rotation_deg"] for r in rows])
+def _summary(figures: dict) -> dict:
+    """The printed summary: :func:`_figures`' counts and errors, rounded."""
+    f = figures
     return {
-        "trials": len(rows),
-        "success rate (<= 5 mm and <= 1 deg)": f"{np.mean([x['success'] for x in rows]):.0%}",
-        "stopped by the gradient test": sum(x["converged"] for x in rows),
-        "final translation error, median / max (mm)": f"{np.median(t):.2f} / {t.max():.2f}",
-        "final rotation error, median / max (deg)": f"{np.median(r):.3f} / {r.max():.3f}",
-        "cycles, median / max": "{:.0f} / {}".format(
-            np.median([x["cycles"] for x in rows]), max(x["cycles"] for x in rows)),
-        "simulated time, median / max (s)": "{:.1f} / {:.1f}".format(
-            np.median([x["time_s"] for x in rows]), max(x["time_s"] for x in rows)),
-        "joint-limit violations (cycles)": sum(x["limit_violations"] for x in rows),
+        "trials": f["trials"],
+        "success rate (<= 5 mm and <= 1 deg)": f"{f['successes'] / f['trials']:.0%}",
+        "stopped by the gradient test": f["stopped_by_gradient_test"],
+        "final translation error, median / max (mm)":
+            f"{f['final_translation_mm_median']:.2f} / {f['final_translation_mm_max']:.2f}",
+        "final rotation error, median / max (deg)":
+            f"{f['final_rotation_deg_median']:.3f} / {f['final_rotation_deg_max']:.3f}",
+        "cycles, median / max": f"{f['cycles_median']:.0f} / {f['cycles_max']}",
+        "simulated time, median / max (s)":
+            f"{f['simulated_s_median']:.1f} / {f['simulated_s_max']:.1f}",
+        "joint-limit violations (cycles)": f["limit_violations"],
     }
 
 
@@ -129,9 +130,9 @@ def _figures(rows: list[dict], cycles: list[tuple[float, bool]]) -> dict:
     Returns
     -------
     dict
-        Counts over the trials; medians and maxima of their final errors and cycles;
-        controller times over all cycles (milliseconds), over the law's cycles, and the
-        range over the global search's (seconds).
+        Counts over the trials; medians and maxima of their final errors, cycles and
+        simulated times (seconds); controller times over all cycles (milliseconds), over
+        the law's cycles, and the range over the global search's (seconds).
     """
     t = [1000 * r["final_translation_m"] for r in rows]
     r = [r["final_rotation_deg"] for r in rows]
@@ -148,6 +149,8 @@ def _figures(rows: list[dict], cycles: list[tuple[float, bool]]) -> dict:
         "final_rotation_deg_max": float(max(r)),
         "cycles_median": float(np.median([x["cycles"] for x in rows])),
         "cycles_max": max(x["cycles"] for x in rows),
+        "simulated_s_median": float(np.median([x["time_s"] for x in rows])),
+        "simulated_s_max": float(max(x["time_s"] for x in rows)),
         "cycles": len(cycles),
         "search_cycles": len(search),
         "limit_violations": sum(x["limit_violations"] for x in rows),
@@ -162,12 +165,13 @@ def _figures(rows: list[dict], cycles: list[tuple[float, bool]]) -> dict:
 def write_summary(rows: list[dict], out: Path, cycles: list[tuple[float, bool]]) -> dict:
     """Write ``summary.csv`` (one row per trial), ``summary.json`` (:func:`_figures`) and
     ``summary.md``; return the printed summary."""
-    (out / "summary.json").write_text(json.dumps(_figures(rows, cycles), indent=2) + "\n")
+    figures = _figures(rows, cycles)
+    (out / "summary.json").write_text(json.dumps(figures, indent=2) + "\n")
     with (out / "summary.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    summary = _summary(rows)
+    summary = _summary(figures)
     lines = ["| measure | value |", "| --- | --- |"]
     lines += [f"| {k} | {v} |" for k, v in summary.items()]
     lines += ["", "| seed | start (mm, deg) | final (mm, deg) | success | cycles |",
