@@ -109,10 +109,11 @@ def real_success(method: str) -> dict[str, list[int]]:
             for g in REAL_GROUPS}
 
 
-def span(values: list[int]) -> str:
-    """``"96-100"`` for values from 96 to 100, ``"100"`` when all are 100."""
-    low, high = min(values), max(values)
-    return f"{low}" if low == high else f"{low}-{high}"
+def span(values: list[float], digits: int = 0, scale: float = 1.0) -> str:
+    """``"96-100"`` for values from 96 to 100 (times ``scale``, ``digits`` decimals), one
+    figure when all agree."""
+    low, high = (f"{scale * min(values):.{digits}f}", f"{scale * max(values):.{digits}f}")
+    return low if low == high else f"{low}-{high}"
 
 
 # --- the blocks -------------------------------------------------------------------------
@@ -368,7 +369,7 @@ def density_notes() -> str:
         at = "every density" if len(where) == len({m for m, _ in rows}) else \
             " and ".join(f"{m}x" for m in where)
         fails.append(f"the {model.replace('_', ' ')} fails for {methods} at {at} "
-                     f"({_spread(_column(mine, 'rotation_error_deg'))} degrees off)")
+                     f"({span(_column(mine, 'rotation_error_deg'))} degrees off)")
     (s_median, s_max), (f_median, f_max) = rise.values()
     return (
         f"From {low}x to {high}x the spectral call's time rises by a median {s_median:.2f}x "
@@ -500,12 +501,6 @@ def recall() -> str:
     ])
 
 
-def _spread(values: list[float], digits: int = 0, scale: float = 1.0) -> str:
-    """``"71-88"`` for values from 71 to 88 (times ``scale``), one figure when all agree."""
-    low, high = (f"{scale * min(values):.{digits}f}", f"{scale * max(values):.{digits}f}")
-    return low if low == high else f"{low}-{high}"
-
-
 def _counted(items: list[str]) -> str:
     """``"`a` (3), `b` (1)"``: each distinct item and how often, most often first."""
     counts = sorted(dict.fromkeys(items), key=lambda item: -items.count(item))
@@ -537,16 +532,16 @@ def _recall_turntable() -> str:
     objects = _counted([r["pair"].rsplit("_", 1)[0] for r in wrong])
     lost = _counted([f"`{r['lost_at']}`" for r in wrong])
     off = max(abs(float(r["final_rotation_deg"]) - int(r["angle"])) for r in wrong)
-    climbs = _spread(_column([r for r in stages if int(r["angle"]) >= FAR_TURNTABLE],
+    climbs = span(_column([r for r in stages if int(r["angle"]) >= FAR_TURNTABLE],
                              "climbs_right"), scale=100)
-    recall = {g: _spread(_column(rows, "recall_at_all"), scale=100)
+    recall = {g: span(_column(rows, "recall_at_all"), scale=100)
               for g, rows in generators.items()}
     return (
         f"On the turntable pairs the shells' peaks hold a right rotation on {recall['shell']}% "
         f"of pairs at every angle (the first placed at a median rank of "
-        f"{_spread(_column(generators['shell'], 'median_placed_rank'))}), the EGI's on "
+        f"{span(_column(generators['shell'], 'median_placed_rank'))}), the EGI's on "
         f"{recall['egi']}%, the sweep's on {recall['sweep']}%, and the search ends right on "
-        f"{_spread(_column(stages, 'success'), scale=100)}% of pairs at every angle. From "
+        f"{span(_column(stages, 'success'), scale=100)}% of pairs at every angle. From "
         f"{FAR_TURNTABLE} degrees the wrong poses are, by object, {objects}; lost at {lost}; "
         f"each turned from the truth by the turntable's angle, to within {off:.0f} degrees. "
         f"There the climbs' best is right on {climbs}% of the pairs searched."
@@ -565,13 +560,13 @@ def _recall_dragon() -> str:
     return (
         f"On the dragon pairs {', '.join(r['angle'] for r in stages)} degrees apart the EGI's "
         f"peaks hold the rotation on {each(generators['egi'], 'recall_at_all')}% of pairs "
-        f"(their nearest a median {_spread(_column(generators['egi'], 'median_nearest_deg'))} "
+        f"(their nearest a median {span(_column(generators['egi'], 'median_nearest_deg'))} "
         f"degrees off), the shells' on {each(generators['shell'], 'recall_at_all')}%; the "
         f"climbs' best is right on {each(stages, 'climbs_right')}% of the pairs searched. From "
         f"{FAR_DRAGON} degrees {len(wrong)} of {len(far)} pairs end wrong, lost at {lost}: "
-        f"the sweep's nearest rotation lies {_spread(_column(wrong, 'sweep_nearest_deg'))} "
+        f"the sweep's nearest rotation lies {span(_column(wrong, 'sweep_nearest_deg'))} "
         f"degrees off, and the climbs and the ascent from there leave them "
-        f"{_spread(_column(wrong, 'final_rotation_deg'))} degrees off."
+        f"{span(_column(wrong, 'final_rotation_deg'))} degrees off."
     )
 
 
@@ -723,10 +718,10 @@ def readme_servo() -> str:
     )
 
 
-def _width() -> str:
-    """The width bench's result: per method, median seconds at the narrowest and the widest
-    scene and the successes per width; the width from which both FPFH-RANSACs are slower."""
-    rows = read_csv("width")
+def _width(rows: list[dict[str, str]]) -> str:
+    """The width bench's result (its ``rows``): per method, median seconds at the narrowest
+    and the widest scene and the successes per width; the width from which both
+    FPFH-RANSACs are slower."""
     widths = sorted({float(r["width_m"]) for r in rows})
     names = {"spectral_global": "spectral", "fpfh_ransac_lean": "lean FPFH-RANSAC",
              "fpfh_ransac": "tutorial FPFH-RANSAC"}
@@ -759,9 +754,9 @@ def _prepared(name: str) -> tuple[float, str]:
 def timings() -> str:
     """results.md's other timings: one law iteration, the width bench, a prepared model,
     two large clouds."""
-    it, large = read_csv("iteration")[0], read_csv("large")[0]
-    points = sorted({int(r["scene_points"]) for r in read_csv("width")})
-    widths = sorted({float(r["width_m"]) for r in read_csv("width")})
+    it, large, width = read_csv("iteration")[0], read_csv("large")[0], read_csv("width")
+    points = sorted({int(r["scene_points"]) for r in width})
+    widths = sorted({float(r["width_m"]) for r in width})
     estimated, given = _prepared("prepared_estimated"), _prepared("prepared_given")
     iteration = float(it["iteration_ms"])
     return "\n".join([
@@ -773,7 +768,7 @@ def timings() -> str:
              f"of the grid"],
             [f"one view against tabletops {widths[0]:g}-{widths[-1]:g} m wide "
              f"({round(points[0], -3) // 1000}k-"
-             f"{round(points[-1], -3) // 1000}k points)", _width()],
+             f"{round(points[-1], -3) // 1000}k points)", _width(width)],
             [f"one model against {given[1].split(' / ')[-1]} views, prepared once or per call",
              f"{estimated[0]:.2f}x the time with estimated normals, {given[0]:.2f}x with given "
              f"ones; registered {estimated[1]} and {given[1]}"],
