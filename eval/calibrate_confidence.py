@@ -83,7 +83,7 @@ GROUPS = ("partial", "occluded", "cluttered", "crop_in_scene", "half_crop", *TUR
           "dragon", "wrong_object")
 #: The evidence columns of a row, as ``result.pose_evidence`` names them.
 EVIDENCE = ("fit", "target_fit", "plane_distance", "normal_agreement", "free_space",
-            "rival_fit", "ambiguous", "rival_self_match", "two_views")
+            "rival_fit", "ambiguous", "rival_self_match", "two_views", "motion_support")
 #: Bins of the reliability diagram.
 BINS = 10
 #: Elevation of the turntable pairs' views, degrees.
@@ -219,7 +219,8 @@ def design(rows: list[dict]) -> np.ndarray:
             float(row["fit"]), float(row["target_fit"]), float(row["plane_distance"]),
             float(row["normal_agreement"]), None if free in ("", None) else float(free),
             float(row["rival_fit"]), bool(int(row["ambiguous"])),
-            float(row["rival_self_match"]), bool(int(row["two_views"])))
+            float(row["rival_self_match"]), bool(int(row["two_views"])),
+            float(row["motion_support"]))
         values = confidence_model.features(evidence)
         out.append([values[name] for name in confidence_model.FEATURES])
     return np.asarray(out, dtype=np.float64)

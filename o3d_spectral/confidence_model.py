@@ -39,25 +39,26 @@ PLANE_FLOOR = 1e-3
 #: The model's features, in the order of :data:`COEFFICIENTS`.
 FEATURES = ("logit_fit_object", "logit_fit_views", "two_views", "logit_target_fit",
             "log_plane_object", "log_plane_views", "logit_normals_object", "sqrt_free_space",
-            "sensor_known", "ambiguous_different")
+            "sensor_known", "ambiguous_different", "support_gap")
 
 # Fitted by eval/calibrate_confidence.py (see the module docstring): command, data and
 # commit in docs/data/sources.json ("calibrate_confidence_summary"); the same numbers in
 # docs/data/calibrate_confidence_coefficients.json.
 #: The logistic model's intercept.
-BIAS = -2.6192
+BIAS = 2.9884
 #: The logistic model's coefficient of each feature (raw units).
 COEFFICIENTS = {
-    "logit_fit_object": 1.9887,
-    "logit_fit_views": 0.1942,
-    "two_views": 7.2482,
-    "logit_target_fit": -0.2513,
-    "log_plane_object": -1.5164,
-    "log_plane_views": 0.0618,
-    "logit_normals_object": 1.8877,
-    "sqrt_free_space": -34.0804,
-    "sensor_known": -1.9872,
-    "ambiguous_different": -0.2014,
+    "logit_fit_object": 2.0328,
+    "logit_fit_views": -0.2754,
+    "two_views": 5.1068,
+    "logit_target_fit": -0.2489,
+    "log_plane_object": -1.1498,
+    "log_plane_views": -0.8628,
+    "logit_normals_object": 1.9444,
+    "sqrt_free_space": -43.8222,
+    "sensor_known": -2.2904,
+    "ambiguous_different": -0.7524,
+    "support_gap": 2.0803,
 }
 
 
@@ -79,6 +80,10 @@ def features(evidence: PoseEvidence) -> dict[str, float]:
     - ``logit_target_fit``: the logit of the target fit;
     - ``sqrt_free_space`` and ``sensor_known``: 0 where the target's sensor is unknown
       (``evidence.free_space`` None), the model then resting on the other features;
+    - ``support_gap``: the logit of the motion support less the logit of the fit: near
+      0 where the inliers resist every motion as much as the fit says they should, very
+      negative where a motion is resisted by the points that miss only (a mug's body
+      matched, its handle not);
     - ``ambiguous_different``: 1 where a distinct pose fits as well and is not the
       returned one turned by a symmetry of the source (one of the two is wrong, and the
       target cannot tell which).
@@ -99,6 +104,7 @@ def features(evidence: PoseEvidence) -> dict[str, float]:
         "sqrt_free_space": 0.0 if free is None else float(np.sqrt(free)),
         "sensor_known": 0.0 if free is None else 1.0,
         "ambiguous_different": float(different),
+        "support_gap": _logit(evidence.motion_support) - fit,
     }
 
 
