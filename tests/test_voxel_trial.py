@@ -29,7 +29,7 @@ def test_two_sizes_agreeing_end_the_ladder(drill_view):
     assert [v for v, _ in trial.tried] == pytest.approx(
         [rule * f for f in trial_module.VOXEL_LADDER[:2]], rel=1e-12)
     assert trial.agreed
-    assert trial.result.confidence == max(c for _, c in trial.tried)
+    assert trial.voxel_size == min(v for v, _ in trial.tried)  # the finer of the two
     again = o3d_spectral.registration_spectral_global(drill_view.source, drill_view.target,
                                                       trial.voxel_size)
     np.testing.assert_array_equal(trial.result.transformation, again.transformation)
@@ -76,8 +76,17 @@ def _stand_in(monkeypatch, outcomes):
     return called
 
 
-def test_agreeing_sizes_stop_and_keep_the_more_confident(monkeypatch):
+def test_agreeing_sizes_stop_and_keep_the_finer(monkeypatch):
+    """The same pose at two sizes: the finer size's polish, however confident the other."""
     called = _stand_in(monkeypatch, {1.0: (0.0, 0.87, False), 2.0: (3.0, 0.90, False),
+                                     0.5: (120.0, 0.92, False)})
+    trial = trial_module.voxel_trial(None, None, ladder=(1.0, 2.0, 0.5))
+    assert called == [1.0, 2.0]
+    assert trial.voxel_size == 1.0 and trial.agreed
+
+
+def test_of_two_agreeing_sizes_one_warned_about_the_other_is_kept(monkeypatch):
+    called = _stand_in(monkeypatch, {1.0: (0.0, 0.4, False), 2.0: (3.0, 0.9, False),
                                      0.5: (120.0, 0.92, False)})
     trial = trial_module.voxel_trial(None, None, ladder=(1.0, 2.0, 0.5))
     assert called == [1.0, 2.0]
