@@ -251,6 +251,12 @@ class GlobalSearchOption:
         of twice the voxel (an eighth of the FFT) and only this many, the highest, are
         placed at full resolution, >= 0; 0 places every one at full resolution. Not
         applied to a model against a view or a scene.
+    second_opinions : int, default 3
+        Where the pose the search returns may be wrong (its calibrated confidence under
+        one half, after the climbs), up to this many of the other climbs' poses, distinct
+        from it, are climbed on to convergence, polished and measured, and the most
+        confident result is returned, >= 0; 0 never. Each costs about a local
+        registration; calls whose pose is not in doubt pay nothing.
     workers : int or None, default None
         Threads the independent parts of the search run on, >= 1 (placements, the
         sweep's batches, the confirmation's polishes, the climbs, the ascent's starts);
@@ -271,6 +277,7 @@ class GlobalSearchOption:
     confirm: bool = True
     peak_ascent: bool = True
     coarse_placements: int = 16
+    second_opinions: int = 3
     workers: int | None = None
 
     def __post_init__(self) -> None:
@@ -278,6 +285,7 @@ class GlobalSearchOption:
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
+        check_int("second_opinions", self.second_opinions, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places", "scene_hypotheses"):
             check_int(name, getattr(self, name), low=1)

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .diagnostics import may_be_wrong
 from .law import Climb
 from .options import (
     CloudOption,
@@ -30,7 +31,7 @@ from .result import SpectralRegistrationResult
 from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start
 from .search import GlobalSearch, Ranking
 from .search.confirmation import Confirmation
-from .search.poses import confidence
+from .search.poses import confidence, distinct
 from .stages import StageClock
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global",
@@ -172,7 +173,11 @@ def registration_spectral_global(
     6. **polish**: the point-to-plane refinement and Open3D's scoring; where the best
        placed pose, as the confirmation polished it, lies clearly closer to the target
        than the result, it is polished and returned instead
-       (:func:`o3d_spectral.search.confirmation.closer`).
+       (:func:`o3d_spectral.search.confirmation.closer`);
+    7. **second_opinions**: where the search ran and the returned pose may be wrong (its
+       calibrated confidence under one half), the other climbs' poses climbed on,
+       polished and measured, and the most confident returned (:func:`second_opinion`;
+       ``search.second_opinions``).
 
     Against a single view the search correlates the view with the model as the sensor
     would see it; against a whole scene it focuses on the scene's normals where the
@@ -232,6 +237,7 @@ def registration_spectral_global(
         best, pose, result = placed_result(run, confirmed)
     else:
         best, pose, result, _ = searched(run, finder, ranking, clock)
+    climbed = list(result.hypotheses)  # before the polish moves them to the caller's frame
     with clock.stage("polish"):
         result = finish(run, result, best, pose @ run.init, refinement,
                         max_correspondence_distance)
@@ -241,6 +247,10 @@ def registration_spectral_global(
                 best, pose, result = placed_result(run, placed)
                 result = finish(run, result, best, pose @ run.init, refinement,
                                 max_correspondence_distance)
+    if confirmed is None and search.second_opinions and may_be_wrong(result.confidence):
+        with clock.stage("second_opinions"):
+            result = second_opinion(run, result, climbed, search.second_opinions, refinement,
+                                    max_correspondence_distance)
     result.stage_times = clock.times
     return result
 
@@ -299,6 +309,44 @@ def searched(run: Run, finder: GlobalSearch, ranking: Ranking, clock: StageClock
             pose = ascended.transformation(run.moving.centroid)
             result.translation_peak = ascended.translation_peak
     return Searched(climbs[0], pose, result, climbed)
+
+
+def second_opinion(
+    run: Run, result: SpectralRegistrationResult,
+    climbed: list[tuple[NDArray[np.float64], float]], count: int,
+    refinement: RefinementOption | None, max_correspondence_distance: float | None,
+) -> SpectralRegistrationResult:
+    """``result``, or the most confident of the climbed poses distinct from it.
+
+    Where the returned pose may be wrong (its calibrated confidence is under one half),
+    the search's other climbs may hold the right one: up to ``count`` of ``climbed``
+    (the climbs' best iterates, best first, 4x4 in the run's frame with their scores),
+    distinct from the returned pose and from one another, are each climbed on by the law
+    to convergence, polished and measured as the returned pose was
+    (:func:`o3d_spectral.run.finish`); the result of the highest confidence is kept, the
+    returned one where none is higher.
+    """
+    to_moving = np.linalg.inv(run.init)
+    seen = [run.moving_pose(result.transformation)]
+    kept = result
+    for matrix, _ in climbed:
+        pose = matrix @ to_moving
+        if count == 0 or not all(distinct(pose, other) for other in seen):
+            continue
+        seen.append(pose)
+        count -= 1
+        R = pose[:3, :3].copy()
+        state = Climb(run.moving.centroid, R, pose[:3, 3] - run.moving.centroid
+                      + R @ run.moving.centroid)
+        run.climb(state, run.criteria.max_iteration)
+        other = SpectralRegistrationResult()
+        other.hypotheses, other.search_margin = list(climbed), result.search_margin
+        other.translation_peak = state.history[-1].translation_peak
+        other = finish(run, other, state, state.matrix() @ run.init, refinement,
+                       max_correspondence_distance)
+        if other.confidence > kept.confidence:
+            kept = other
+    return kept
 
 
 for _call in (registration_spectral, registration_spectral_global):
