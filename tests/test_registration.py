@@ -445,13 +445,12 @@ def test_global_search_returns_its_best_scoring_iterate():
     """A bowl seen from one side (stored), with the polish off: the law climbs from the
     right pose to a wrong one (its last iterate is far off); the global call returns the
     best-scoring iterate of all its climbs (``hypotheses[0]``), which is right. The
-    confirmation, which would skip the climbs, and the second opinions, which would
-    climb the other climbs' poses on where the unpolished pose seems wrong, are off."""
+    confirmation, which would skip the climbs, is off."""
     instance = load_scene("partial_bowl_side")
     T, symmetry, center = instance.T_gt, instance.symmetry, instance.source_center
     result = o3d_spectral.registration_spectral_global(
         instance.source, instance.target, VOXEL, refinement=None,
-        search=o3d_spectral.GlobalSearchOption(confirm=False, second_opinions=0),
+        search=o3d_spectral.GlobalSearchOption(confirm=False),
     )
     best_pose, best_score = result.hypotheses[0]
     assert best_score == max(score for _, score in result.hypotheses)
