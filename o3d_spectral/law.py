@@ -113,6 +113,13 @@ class Climb:
         """The current pose as a 4x4 rigid transformation."""
         return so3.about_pivot(self.R, self.T, self.centroid)
 
+    @classmethod
+    def at(cls, pose: NDArray[np.float64], centroid: NDArray[np.float64]) -> Climb:
+        """A climb starting at ``pose`` (4, 4) of the cloud whose centroid is ``centroid``
+        (3,, metres): the inverse of :meth:`matrix`."""
+        R = np.array(pose[:3, :3], dtype=np.float64)
+        return cls(centroid, R, R @ centroid + pose[:3, 3] - centroid)
+
     def best_iterate(self) -> tuple[float, NDArray[np.float64], IterationRecord]:
         """The iterate that scores best (:func:`pose_score`; the first of equals), with
         its pose (4, 4; before ``init``): its rotation, and its centroid where its phase

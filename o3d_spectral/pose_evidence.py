@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from .io.cloud import MIN_POINTS
+from .io.rows import known
 
 __all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
            "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "SUPPORT_FLOOR", "motion_support"]
@@ -189,7 +190,7 @@ def pose_evidence(
             "ij,ij->i", shown[inlier] - found_points[j], found_normals[j])))) / v
         cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], found_normals[j]))
         agreement = float(np.mean(cosine > np.cos(np.deg2rad(NORMAL_AGREEMENT_ANGLE))))
-        has_normal = np.einsum("ij,ij->i", shown_normals, shown_normals) > 0.5
+        has_normal = known(shown_normals)
         if has_normal.sum() >= MIN_POINTS:
             support = motion_support(shown[has_normal], shown_normals[has_normal],
                                      inlier[has_normal])

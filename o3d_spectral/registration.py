@@ -330,14 +330,13 @@ def second_opinion(
     seen = [run.moving_pose(result.transformation)]
     kept = result
     for matrix, _ in climbed:
+        if len(seen) > count:  # the returned pose and ``count`` others
+            break
         pose = matrix @ to_moving
-        if count == 0 or not all(distinct(pose, other) for other in seen):
+        if not all(distinct(pose, other) for other in seen):
             continue
         seen.append(pose)
-        count -= 1
-        R = pose[:3, :3].copy()
-        state = Climb(run.moving.centroid, R, pose[:3, 3] - run.moving.centroid
-                      + R @ run.moving.centroid)
+        state = Climb.at(pose, run.moving.centroid)
         run.climb(state, run.criteria.max_iteration)
         other = SpectralRegistrationResult()
         other.hypotheses, other.search_margin = list(climbed), result.search_margin

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from .io.cloud import MIN_POINTS
+from .io.rows import known
 from .refinement import near_pose
 from .search.confirmation import fit
 from .search.poses import distinct
@@ -263,7 +264,7 @@ def ambiguity(
 def _self_match(moving: MovingCloud, motion: NDArray[np.float64], voxel_size: float) -> float:
     """Median distance (voxels) of the moving points moved by ``motion`` (4, 4) to the
     tangent plane of their nearest moving point (those with a normal)."""
-    has_normal = np.einsum("ij,ij->i", moving.point_normals, moving.point_normals) > 0.5
+    has_normal = known(moving.point_normals)
     points, normals = moving.points[has_normal], moving.point_normals[has_normal]
     if len(points) < MIN_POINTS:
         return float("inf")

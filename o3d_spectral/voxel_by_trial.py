@@ -145,10 +145,11 @@ def _settled(trials: Sequence[VoxelTrial]) -> VoxelTrial | None:
     """Of the last trial and an earlier one whose pose it agrees with, the finer that the
     call does not warn may be wrong; None where there is none."""
     *earlier, last = trials
-    pairs = [(other, last) for other in earlier if _agree(other, last)]
-    settled = [min(kept, key=lambda t: t.voxel_size) for kept in
-               ([t for t in pair if not may_be_wrong(t.result.confidence)] for pair in pairs)
-               if kept]
+    settled = []
+    for other in (other for other in earlier if _agree(other, last)):
+        unwarned = [t for t in (other, last) if not may_be_wrong(t.result.confidence)]
+        if unwarned:
+            settled.append(min(unwarned, key=lambda t: t.voxel_size))
     return _best(settled) if settled else None
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["bounds", "largest_side", "lengths", "every", "some"]
+__all__ = ["bounds", "largest_side", "lengths", "every", "some", "known"]
 
 
 def bounds(points: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -43,3 +43,10 @@ def every(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
 def some(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """``np.any(mask, axis=1)`` of ``mask`` (N, 3)."""
     return mask[:, 0] | mask[:, 1] | mask[:, 2]
+
+
+def known(normals: NDArray[np.floating]) -> NDArray[np.bool_]:
+    """The rows of ``normals`` (N, 3) that hold a normal: unit vectors, not the zero rows
+    that mark a point whose normal is unknown."""
+    x, y, z = normals[:, 0], normals[:, 1], normals[:, 2]
+    return x * x + y * y + z * z > 0.5
