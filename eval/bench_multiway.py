@@ -132,7 +132,8 @@ def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline
                      "translation_error_m": translation,
                      "success": bool(rotation < MAX_ROTATION_DEG
                                      and translation < MAX_TRANSLATION_M),
-                     "unconnected": k in result.unconnected})
+                     "unconnected": k in result.unconnected,
+                     "doubtful": k in result.doubtful})
     return rows, seconds
 
 
@@ -154,21 +155,36 @@ def summary(rows: list[dict], times: dict) -> list[dict]:
         group = list(group)
         out.append({"suite": key[0], "set": key[1], "pipeline": key[2],
                     "right": sum(r["success"] for r in group), "scans": len(group),
-                    "seconds": times[key]})
+                    "seconds": times[key], **_doubts(group)})
     for suite, pipeline in dict.fromkeys((r["suite"], r["pipeline"]) for r in rows):
         group = [s for s in out if (s["suite"], s["pipeline"]) == (suite, pipeline)]
         out.append({"suite": suite, "set": "all", "pipeline": pipeline,
                     "right": sum(s["right"] for s in group),
                     "scans": sum(s["scans"] for s in group),
-                    "seconds": sum(s["seconds"] for s in group)})
+                    "seconds": sum(s["seconds"] for s in group),
+                    **{k: sum(s[k] for s in group) for k in DOUBTS}})
     return out
+
+
+#: The summary's counts of doubtful scans (``MultiwayResult.doubtful``): all of them, the
+#: wrong ones among them, and the placed scans that are wrong but not doubtful.
+DOUBTS = ("doubtful", "doubtful_wrong", "wrong_undoubted")
+
+
+def _doubts(rows: list[dict]) -> dict[str, int]:
+    """The :data:`DOUBTS` counts of a set's rows."""
+    placed = [r for r in rows if not r["unconnected"]]
+    return {"doubtful": sum(r["doubtful"] for r in placed),
+            "doubtful_wrong": sum(r["doubtful"] and not r["success"] for r in placed),
+            "wrong_undoubted": sum(not r["doubtful"] and not r["success"] for r in placed)}
 
 
 def table(rows: list[dict], command: str, commit: str) -> str:
     """The Markdown table: one line per suite and set, both pipelines side by side."""
     by_key = {(s["suite"], s["set"], s["pipeline"]): s for s in rows}
     lines = ["| suite | set | " + " | ".join(f"{p}: right | {p}: s" for p in PIPELINES)
-             + " |", "|---|---|" + "---:|---:|" * len(PIPELINES)]
+             + " | spectral: doubtful (wrong) | spectral: wrong, not doubtful |",
+             "|---|---|" + "---:|---:|" * len(PIPELINES) + "---:|---:|"]
     suites = list(dict.fromkeys(s["suite"] for s in rows))
     keys = sorted(dict.fromkeys((s["suite"], s["set"]) for s in rows),
                   key=lambda key: (suites.index(key[0]), key[1] == "all"))
@@ -178,6 +194,9 @@ def table(rows: list[dict], command: str, commit: str) -> str:
             s = by_key.get((suite, name, pipeline))
             cells += ([f"{s['right']}/{s['scans']} ({100 * s['right'] / s['scans']:.0f}%)",
                        f"{s['seconds']:.1f}"] if s else ["-", "-"])
+        s = by_key.get((suite, name, "spectral"))
+        cells += ([f"{s['doubtful']} ({s['doubtful_wrong']})", str(s["wrong_undoubted"])]
+                  if s else ["-", "-"])
         label = f"**{name}**" if name == "all" else name
         lines.append(f"| {suite} | {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + f"\n\nProduced by `{command}` at commit {commit}.\n"

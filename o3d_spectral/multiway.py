@@ -48,14 +48,16 @@ def registration_multiway(
        :func:`o3d_spectral.registration_spectral_global` (each cloud prepared once as a
        source and once as a target) on ``option.workers`` threads;
     2. **selection**: a pair becomes an edge when its ``fit`` and ``fitness`` are high
-       enough; odometry-like (never pruned) when its ``fit`` is very high and clearly
-       ahead of its ``rival_fit``, uncertain otherwise (:class:`MultiwayOption`); each
+       enough; odometry-like (never pruned) when its ``fit`` is very high, clearly
+       ahead of its ``rival_fit`` and the pairwise call did not warn about it (its
+       ``confidence``), uncertain otherwise (:class:`MultiwayOption`); each
        edge's information matrix is Open3D's ``get_information_matrix_from_point_clouds``
        on the down-sampled clouds;
     3. **tree**: the initial poses chained along a maximum spanning tree of the edges
-       weighted by ``fit`` (those not clearly ahead of their ``rival_fit`` last), from
-       the first cloud; clouds it does not reach are
-       ``unconnected``; the edges that disagree with those poses are dropped (a
+       weighted by ``fit`` (those not clearly ahead of their ``rival_fit``, then those
+       warned about, last), from the first cloud; clouds it does not reach are
+       ``unconnected``, and those that only chains through warned pairs reach are
+       ``doubtful``; the edges that disagree with those poses are dropped (a
        symmetric object's pairs may each be right up to a different symmetry), and a
        cloud that only weak tree edges place while its other pairs disagree is left
        unconnected;
@@ -177,7 +179,8 @@ def _register_pairs(
                 option.progress(done[0], len(pairs))
         return PairwiseRecord(i, j, np.array(result.transformation, dtype=np.float64),
                               float(result.fitness), float(result.fit),
-                              float(result.rival_fit), kept=False, uncertain=True)
+                              float(result.rival_fit), kept=False, uncertain=True,
+                              confidence=float(result.confidence))
 
     return thread_map(register, pairs, option.workers)
 

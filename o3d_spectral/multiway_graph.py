@@ -22,7 +22,7 @@ from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
 from .parallel import one_open3d_thread, thread_map
 from .refinement import point_to_plane_icp
 
-__all__ = ["poses_from_pairs", "checked_clouds", "selected", "tree_weight",
+__all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",
            "maximum_spanning_tree"]
 
 reg = o3d.pipelines.registration
@@ -52,7 +52,8 @@ def poses_from_pairs(
         As :func:`registration_multiway`.
     records : sequence of PairwiseRecord
         One per registered pair (``kept`` and ``uncertain`` are set here from ``fit``,
-        ``fitness`` and ``rival_fit``; a method without a rival may give 0).
+        ``fitness``, ``rival_fit`` and ``confidence``; a method without a rival may give
+        0, one without a confidence None).
 
     Returns
     -------
@@ -104,11 +105,20 @@ def _poses_from_pairs(
                                [(r.source, r.target) for r in records], trusted, certain,
                                voxel_size, option)
         graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
+    confident_links = [(r.source, r.target) for r in kept if confident(r, option)]
     return MultiwayResult(
         poses=tuple(_node_poses(graph, nodes, n)), pose_graph=graph, nodes=nodes,
         pairs=tuple(records), unconnected=tuple(k for k in range(n) if k not in nodes),
         run_time=time.perf_counter() - start,
+        doubtful=tuple(k for k in nodes if k not in _reached(n, confident_links)),
     )
+
+
+def _reached(n: int, links: list[tuple[int, int]]) -> set[int]:
+    """The clouds a chain of ``links`` (pairs of cloud indices) joins to cloud 0."""
+    tree = maximum_spanning_tree(n, [(i, j, 0.0) for i, j in links])
+    return {k for k, pose in enumerate(_chained(n, tree, {e: np.eye(4) for e in tree}))
+            if pose is not None}
 
 
 def checked_clouds(clouds: Sequence[object]) -> list[CloudArrays]:
@@ -148,18 +158,25 @@ def selected(record: PairwiseRecord, option: MultiwayOption) -> PairwiseRecord:
     """The record with ``kept`` and ``uncertain`` set by ``option``'s thresholds."""
     lead = record.fit - record.rival_fit
     kept = record.fit >= option.min_fit and record.fitness >= option.min_fitness
-    certain = kept and record.fit >= option.certain_fit and lead >= option.certain_margin
-    return PairwiseRecord(record.source, record.target, record.transformation,
-                          record.fitness, record.fit, record.rival_fit, kept, not certain)
+    certain = (kept and record.fit >= option.certain_fit and lead >= option.certain_margin
+               and confident(record, option))
+    return dataclasses.replace(record, kept=kept, uncertain=not certain)
+
+
+def confident(record: PairwiseRecord, option: MultiwayOption) -> bool:
+    """Whether the pairwise call did not warn about the record's pose: its confidence
+    is at least ``option.min_confidence``, or it has none."""
+    return record.confidence is None or record.confidence >= option.min_confidence
 
 
 def tree_weight(record: PairwiseRecord, option: MultiwayOption) -> float:
     """A kept pair's weight in the maximum spanning tree: its ``fit``, less 1 when it
-    does not lead its ``rival_fit`` by ``option.rival_margin`` (such pairs join the tree
-    only where no leading pair does: a pair of views of a symmetric object has a rival
-    as good, its symmetric pose, and may still be right)."""
+    does not lead its ``rival_fit`` by ``option.rival_margin`` (a pair of views of a
+    symmetric object has a rival as good, its symmetric pose, and may still be right),
+    and less 2 when the pairwise call warned about it (:func:`confident`): such pairs
+    join the tree only where no leading, confident one does."""
     led = record.fit - record.rival_fit >= option.rival_margin
-    return record.fit if led else record.fit - 1.0
+    return record.fit - (0.0 if led else 1.0) - (0.0 if confident(record, option) else 2.0)
 
 
 def _placed(

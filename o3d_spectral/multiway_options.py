@@ -10,6 +10,7 @@ import open3d as o3d
 from numpy.typing import NDArray
 
 from ._checks import check_bool, check_int, check_number
+from .confidence_model import WARN_BELOW
 
 __all__ = ["MultiwayOption", "PairwiseRecord", "MultiwayResult"]
 
@@ -33,6 +34,13 @@ class MultiwayOption:
         tree: ``cycle_degrees``).
     min_fitness : float, default 0.1
         See ``min_fit``.
+    min_confidence : float, default 0.5
+        A kept pair whose calibrated ``confidence`` (the probability that its pose is
+        right) is under this, a pair the pairwise call warns about (the threshold of its
+        warning, :data:`o3d_spectral.confidence_model.WARN_BELOW`), joins the spanning
+        tree only where no confident pair does, is never odometry-like, and a cloud that
+        only such pairs link to the first is reported ``doubtful``. Pairs whose method
+        gives no confidence (``PairwiseRecord.confidence`` None) count as confident.
     rival_margin : float, default 0.05
         A pair whose ``fit`` leads its ``rival_fit`` by less (its best pose does not fit
         clearly better than a distinct one) joins the spanning tree only where no leading
@@ -76,6 +84,7 @@ class MultiwayOption:
     neighbours: int = 4
     min_fit: float = 0.3
     min_fitness: float = 0.1
+    min_confidence: float = WARN_BELOW
     rival_margin: float = 0.05
     cycle_degrees: float = 10.0
     cycle_voxels: float = 4.0
@@ -91,8 +100,8 @@ class MultiwayOption:
     def __post_init__(self) -> None:
         check_int("max_all_pairs", self.max_all_pairs, low=2)
         check_int("neighbours", self.neighbours, low=1)
-        for name in ("min_fit", "min_fitness", "certain_fit", "refine_min_fitness",
-                     "edge_prune_threshold"):
+        for name in ("min_fit", "min_fitness", "min_confidence", "certain_fit",
+                     "refine_min_fitness", "edge_prune_threshold"):
             check_number(name, getattr(self, name), low=0.0, high=1.0)
         for name in ("rival_margin", "certain_margin"):
             check_number(name, getattr(self, name), low=-1.0, high=1.0)
@@ -123,6 +132,10 @@ class PairwiseRecord:
         agrees with the tree (:class:`MultiwayOption` ``min_fit``, ``cycle_degrees``).
     uncertain : bool
         A kept edge the line process may prune (see ``certain_fit``).
+    confidence : float or None
+        The pairwise result's calibrated confidence
+        (:attr:`o3d_spectral.SpectralRegistrationResult.confidence`); None for a method
+        that gives none.
     """
 
     source: int
@@ -133,6 +146,7 @@ class PairwiseRecord:
     rival_fit: float
     kept: bool
     uncertain: bool
+    confidence: float | None = None
 
 
 @dataclass(frozen=True)
@@ -153,6 +167,10 @@ class MultiwayResult:
         Every pairwise registration, in the order the pairs were listed.
     unconnected : tuple of int
         Clouds no chain of kept edges links to the first cloud: reported, not placed.
+    doubtful : tuple of int
+        Placed clouds that no chain of kept, confident edges links to the first cloud
+        (``MultiwayOption.min_confidence``): each chain that places them passes through a
+        pair the pairwise call warned about, so their poses may be wrong.
     run_time : float
         Seconds.
     """
@@ -163,3 +181,4 @@ class MultiwayResult:
     pairs: tuple[PairwiseRecord, ...]
     unconnected: tuple[int, ...]
     run_time: float
+    doubtful: tuple[int, ...] = ()

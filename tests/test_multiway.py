@@ -13,6 +13,7 @@ import o3d_spectral
 from o3d_spectral.cli import main
 from o3d_spectral.harness import real
 from o3d_spectral.multiway import poses_from_pairs
+from o3d_spectral.multiway_graph import tree_weight
 from o3d_spectral.pose_errors import rotation_error, translation_error
 from o3d_spectral.synthetic.models import model_path
 
@@ -126,6 +127,8 @@ def test_reconstruct_writes_the_cloud_the_poses_and_a_picture(tmp_path, capsys):
                                                      "poses.json"]  # no temporary left
     assert json.loads((out / "poses.json").read_text())["poses"] == printed["poses"]
     assert printed["unconnected"] == [] and len(printed["poses"]) == 3
+    assert printed["doubtful"] == [] and all(0.0 <= p["confidence"] <= 1.0
+                                             for p in printed["pairs"])
     merged = o3d.io.read_point_cloud(str(out / "merged.ply"))
     assert len(merged.points) > max(len(c.voxel_down_sample(0.004).points) for c in clouds)
     assert (out / "merged.png").read_bytes()[:4] == b"\x89PNG"
@@ -163,3 +166,53 @@ def test_pairs_of_clouds_that_do_not_exist_are_refused():
                                          uncertain=True)
     with pytest.raises(ValueError, match=r"records\[0\] pairs clouds 0 and 2"):
         poses_from_pairs(clouds, VOXEL, [record])
+
+
+def exact_records(confidence_12: float | None) -> tuple[list, list]:
+    """Three dragon scans in their scanner frames, and records of their exact relative
+    poses: (0, 1) clearly right and confident, (1, 2) as clear but with
+    ``confidence_12``, (0, 2) too poor a fit to be kept."""
+    angles = (0, 24, 48)
+    clouds = [o3d.io.read_point_cloud(str(real.real_dir() / "dragon"
+                                          / f"dragonStandRight_{a}.ply")) for a in angles]
+    poses = [real.dragon_pose(a) for a in angles]
+
+    def record(i: int, j: int, fit: float, confidence: float | None):
+        relative = np.linalg.inv(poses[j]) @ poses[i]
+        return o3d_spectral.PairwiseRecord(i, j, relative, fit, fit, 0.1, kept=False,
+                                           uncertain=True, confidence=confidence)
+
+    return clouds, [record(0, 1, 0.9, 0.99), record(0, 2, 0.1, 0.99),
+                    record(1, 2, 0.9, confidence_12)]
+
+
+def test_a_cloud_placed_only_through_a_warned_pair_is_reported_doubtful():
+    clouds, records = exact_records(0.2)
+    result = poses_from_pairs(clouds, VOXEL, records)
+    assert result.unconnected == () and result.poses[2] is not None
+    assert result.doubtful == (2,)
+    warned = [r for r in result.pairs if (r.source, r.target) == (1, 2)][0]
+    assert warned.kept and warned.uncertain  # an edge the line process may prune
+    confident = [r for r in result.pairs if (r.source, r.target) == (0, 1)][0]
+    assert confident.kept and not confident.uncertain
+
+
+@pytest.mark.parametrize("confidence", [0.99, None])
+def test_a_cloud_placed_through_confident_pairs_or_pairs_without_a_confidence_is_not_doubtful(
+    confidence,
+):
+    clouds, records = exact_records(confidence)
+    result = poses_from_pairs(clouds, VOXEL, records)
+    assert result.unconnected == () and result.doubtful == ()
+    assert not [r for r in result.pairs if (r.source, r.target) == (1, 2)][0].uncertain
+
+
+def test_a_warned_pair_joins_the_tree_only_where_no_confident_pair_does():
+    option = o3d_spectral.MultiwayOption()
+
+    def record(fit: float, rival: float, confidence: float | None):
+        return o3d_spectral.PairwiseRecord(0, 1, np.eye(4), fit, fit, rival, kept=True,
+                                           uncertain=True, confidence=confidence)
+
+    warned, tied, plain = record(0.99, 0.0, 0.3), record(0.4, 0.4, 0.9), record(0.4, 0.4, None)
+    assert tree_weight(warned, option) < tree_weight(tied, option) == tree_weight(plain, option)

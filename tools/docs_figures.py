@@ -616,10 +616,13 @@ def multiway() -> str:
             r = rows[suite, name, pipeline]
             right, scans = int(r["right"]), int(r["scans"])
             cells += [f"{right}/{scans} ({100 * right / scans:.0f}%)", f"{float(r['seconds']):.1f}"]
+        spectral = rows[suite, name, "spectral"]
+        cells += [f"{spectral['doubtful']} ({spectral['doubtful_wrong']})",
+                  spectral["wrong_undoubted"]]
         lines.append([suite, f"**{name}**" if name == "all" else name, *cells])
     return "\n".join([
-        table(["suite", "set", *(f"{p}: {k}" for p in MULTIWAY_PIPELINES for k in ("right", "s"))],
-              lines),
+        table(["suite", "set", *(f"{p}: {k}" for p in MULTIWAY_PIPELINES for k in ("right", "s")),
+               "spectral: doubtful (wrong)", "spectral: wrong, not doubtful"], lines),
         "",
         provenance("multiway") + " Every scan's errors: `docs/data/multiway/rows.csv`.",
     ])

@@ -3,8 +3,8 @@
 Registers the scans into the first one's frame with
 :func:`o3d_spectral.registration_multiway` (no initial poses) and writes to ``DIR``:
 ``merged.ply`` (every placed scan moved by its pose, merged, thinned to half the voxel),
-``poses.json`` (each file's 4x4 pose, the unconnected files, the pairs) and
-``merged.png`` (the merged cloud coloured by scan, seen along its principal axes).
+``poses.json`` (each file's 4x4 pose, the unconnected and the doubtful files, the pairs)
+and ``merged.png`` (the merged cloud coloured by scan, seen along its principal axes).
 The three are written to temporary files in ``DIR`` and renamed once all are written:
 a failed run leaves none of them half written. Scans the registration refuses before
 any work (in different units, too few points) are a usage error, named by file (exit 2).
@@ -167,15 +167,17 @@ def _write_ply(path: Path, cloud) -> None:
 
 
 def _summary(args: argparse.Namespace, result) -> dict:
-    """The poses, the unconnected scans and the pairs as JSON values."""
+    """The poses, the unconnected and the doubtful scans and the pairs as JSON values."""
     names = [str(p) for p in args.scans]
     return {
         "voxel_size": args.voxel_size,
         "poses": {name: None if pose is None else pose.tolist()
                   for name, pose in zip(names, result.poses, strict=True)},
         "unconnected": [names[k] for k in result.unconnected],
+        "doubtful": [names[k] for k in result.doubtful],
         "pairs": [{"source": names[r.source], "target": names[r.target], "fit": r.fit,
-                   "fitness": r.fitness, "kept": r.kept} for r in result.pairs],
+                   "fitness": r.fitness, "confidence": r.confidence, "kept": r.kept}
+                  for r in result.pairs],
         "run_time": result.run_time,
     }
 
@@ -235,4 +237,7 @@ def run(args: argparse.Namespace) -> int:
               f"wrote {', '.join(OUTPUTS)} to {args.out}", file=results())
         for k in result.unconnected:
             print(f"unconnected: {args.scans[k]}", file=results())
+        for k in result.doubtful:
+            print(f"doubtful (placed through pairs that may be wrong): {args.scans[k]}",
+                  file=results())
     return 0
