@@ -7,8 +7,10 @@ axis is right). The probability is a logistic model of the pose's evidence
 
     confidence = 1 / (1 + exp(-z)),   z = BIAS + sum(COEFFICIENTS[name] * feature[name])
 
-with the features of :func:`features`. A warning says the pose may be wrong when the
-confidence is under :data:`WARN_BELOW`.
+with the features of :func:`features`; a pose that no point corroborates (a fit of 0:
+none of the source's points the target could show lies within a voxel of it) has
+confidence 0, whatever the rest of its evidence. A warning says the pose may be wrong
+when the confidence is under :data:`WARN_BELOW`.
 
 The coefficients were fitted by ``python eval/calibrate_confidence.py --out
 out/calibrate_confidence`` (L2-penalised logistic regression on standardised features,
@@ -117,5 +119,9 @@ def probability(values: dict[str, float], bias: float = BIAS,
 
 
 def confidence(evidence: PoseEvidence) -> float:
-    """The probability, in [0, 1], that the pose measured by ``evidence`` is right."""
+    """The probability, in [0, 1], that the pose measured by ``evidence`` is right; 0
+    where no point corroborates it (``evidence.fit`` 0: between two views the model reads
+    a small fit as a small overlap, and was fitted on none this small)."""
+    if evidence.fit <= 0.0:
+        return 0.0
     return probability(features(evidence))

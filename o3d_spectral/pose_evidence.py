@@ -108,7 +108,8 @@ class PoseEvidence:
         overlap, which may be small for a right pose.
     motion_support : float
         The inliers' least share of the constraint on a rigid motion, [0, 1]
-        (:func:`motion_support`; 1 when too few points have normals).
+        (:func:`motion_support`; 1 when too few points have normals, 0 when no target
+        point lies near the pose).
     """
 
     fit: float
@@ -175,9 +176,9 @@ def pose_evidence(
     shown, shown_normals = posed[facing], normals[facing]
     rival = {"rival_fit": float(rival_fit), "ambiguous": bool(ambiguous),
              "rival_self_match": float(rival_self_match), "two_views": bool(two_views)}
-    if len(near_points) == 0:
+    if len(near_points) == 0:  # no target point near: nothing supports any motion
         return PoseEvidence(float(fit), 1.0, 1.0, 0.0, None if sensor is None else 0.0,
-                            **rival)
+                            **rival, motion_support=0.0)
     found_points, found_normals = target_points, target_normals
     if tree is None:  # the points within a voxel of the source are near it
         tree, found_points, found_normals = cKDTree(near_points), near_points, near_normals
@@ -190,10 +191,10 @@ def pose_evidence(
             "ij,ij->i", shown[inlier] - found_points[j], found_normals[j])))) / v
         cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], found_normals[j]))
         agreement = float(np.mean(cosine > np.cos(np.deg2rad(NORMAL_AGREEMENT_ANGLE))))
-        has_normal = known(shown_normals)
-        if has_normal.sum() >= MIN_POINTS:
-            support = motion_support(shown[has_normal], shown_normals[has_normal],
-                                     inlier[has_normal])
+    has_normal = known(shown_normals)
+    if has_normal.sum() >= MIN_POINTS:  # with no inlier, the floor's share of it
+        support = motion_support(shown[has_normal], shown_normals[has_normal],
+                                 inlier[has_normal])
     inside = near_points[np.sum((near_points - centre) ** 2, axis=1) <= (radius - v) ** 2]
     target_fit = 1.0
     if len(inside):

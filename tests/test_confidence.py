@@ -104,6 +104,23 @@ def test_the_motion_support_is_the_inliers_least_share_of_a_motions_constraint()
     assert motion_support(moved, normals @ motion[:3, :3].T, ~tab) == pytest.approx(missed)
 
 
+def test_a_pose_no_point_corroborates_has_no_support_and_no_confidence():
+    """Between two views the model reads a small fit as a small overlap; a fit of 0 (no
+    point within a voxel, the target's sensor known and the other evidence at its most
+    favourable) is no evidence at all."""
+    favourable = PoseEvidence(0.0, 1.0, 0.01, 1.0, 0.0, two_views=True, motion_support=1.0)
+    assert confidence_model.probability(confidence_model.features(favourable)) > 0.99
+    assert confidence_model.confidence(favourable) == 0.0
+    points, normals, _ = mug_like(np.random.default_rng(0))
+    # around a copy twice its size (target points near, none within a voxel), or far away
+    for target, shift in ((2.0 * points, 0.0), (points, 5.0)):
+        pose = rigid(np.eye(3), np.array([shift, 0.0, 0.0]))
+        evidence = pose_evidence(points, normals, target, normals, pose, 0.005, fit=0.0,
+                                 two_views=True)
+        assert evidence.motion_support < 2 * SUPPORT_FLOOR, evidence
+        assert confidence_model.confidence(evidence) == 0.0
+
+
 def test_an_unknown_sensor_leaves_the_free_space_feature_neutral():
     evidence = PoseEvidence(0.9, 0.8, 0.1, 0.9, None)
     values = confidence_model.features(evidence)
