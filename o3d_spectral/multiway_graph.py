@@ -105,12 +105,12 @@ def _poses_from_pairs(
                                [(r.source, r.target) for r in records], trusted, certain,
                                voxel_size, option)
         graph = _optimised(nodes, poses, edges, distance, option.edge_prune_threshold)
-    confident_links = [(r.source, r.target) for r in kept if confident(r, option)]
+    trusted = _reached(n, [(r.source, r.target) for r in kept if confident(r, option)])
     return MultiwayResult(
         poses=tuple(_node_poses(graph, nodes, n)), pose_graph=graph, nodes=nodes,
         pairs=tuple(records), unconnected=tuple(k for k in range(n) if k not in nodes),
         run_time=time.perf_counter() - start,
-        doubtful=tuple(k for k in nodes if k not in _reached(n, confident_links)),
+        doubtful=tuple(k for k in nodes if k not in trusted),
     )
 
 
