@@ -21,6 +21,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+import open3d as o3d
 from scipy.spatial import cKDTree
 
 from o3d_spectral.harness.writers import write_rows
@@ -40,6 +41,7 @@ def handle_tree(radius: float) -> cKDTree:
     vertical axis through the mean of its vertices (metres, the model's frame)."""
     mesh = model_mesh("mug")
     centre = np.asarray(mesh.vertices).mean(axis=0)
+    o3d.utility.random.seed(SEED)  # Open3D's sampling draws from its own generator
     points = np.asarray(mesh.sample_points_uniformly(SURFACE_POINTS).points)
     return cKDTree(points[np.linalg.norm(points[:, :2] - centre[:2], axis=1) > radius])
 
