@@ -804,6 +804,32 @@ def far() -> str:
     ])
 
 
+#: A view shows the handle when more than this share of its points lie on it.
+SHOWS_HANDLE = 0.005
+
+
+def handle_visibility() -> str:
+    """The share of each view of the mug's turntable pairs on its handle, and the pairs
+    in which a view shows none of it: from ``eval/handle_visibility.py``'s CSV."""
+    rows = read_csv("handle_visibility")
+    blind = [r for r in rows
+             if min(float(r["source_share"]), float(r["target_share"])) <= SHOWS_HANDLE]
+    angles = sorted({int(r["angle"]) for r in rows})
+    undetermined = [a for a in angles
+                    if all(r in blind for r in rows if int(r["angle"]) == a)]
+    lines = [[r["angle"], r["elevation"], f"{100 * float(r['source_share']):.1f}%",
+              f"{100 * float(r['target_share']):.1f}%"] for r in rows]
+    return "\n".join([
+        table(["degrees apart", "elevation", "source view on the handle",
+               "target view on the handle"], lines),
+        "",
+        f"In {len(blind)} of the mug's {len(rows)} pairs a view shows none of the handle "
+        f"(at most {100 * SHOWS_HANDLE:.1f}% of its points on it), among them every pair "
+        f"{', '.join(str(a) for a in undetermined)} degrees apart. "
+        + provenance("handle_visibility"),
+    ])
+
+
 #: Block name -> renderer. A block may appear in any of ``DOCS``.
 BLOCKS: dict[str, Callable[[], str]] = {
     "readme": readme,
@@ -832,6 +858,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "recall-notes": recall_notes,
     "density-notes": density_notes,
     "confidence-misses": confidence_misses,
+    "handle-visibility": handle_visibility,
 }
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
