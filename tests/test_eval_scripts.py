@@ -50,6 +50,7 @@ SCRIPTS = (
     "confidence_precision.py",
     "derive_real_data.py",
     "failure_signal.py",
+    "handle_visibility.py",
     "recall_generators.py",
     "run_benchmark.py",
     "tune_fpfh.py",
@@ -128,6 +129,21 @@ def test_every_eval_script_has_a_tiny_run():
     assert {p.name for p in EVAL.glob("*.py")} == set(SCRIPTS)
     tests = {name for name in globals() if name.startswith("test_")}
     assert {f"test_{Path(s).stem}" for s in SCRIPTS} <= tests
+
+
+def test_handle_visibility(tmp_path):
+    """Every mug pair of the recall tables, the share of each view on the handle: none in
+    one view of every pair 30-60 degrees apart, some in both at 120 degrees and 20 of
+    elevation."""
+    printed = run("handle_visibility.py", "--out", tmp_path / "shares.csv", cwd=tmp_path)
+    rows = read_csv(tmp_path / "shares.csv")
+    assert len(rows) == 12 and len(table_rows(printed, "30")) == 2
+    shares = {(int(r["angle"]), int(r["elevation"])): (float(r["source_share"]),
+                                                      float(r["target_share"])) for r in rows}
+    assert all(0.0 <= s <= 1.0 for pair in shares.values() for s in pair)
+    assert all(min(shares[angle, elevation]) <= 0.005 for angle in (30, 45, 60)
+               for elevation in (20, 45))
+    assert min(shares[120, 20]) > 0.01
 
 
 def test_bench_density(tmp_path):
