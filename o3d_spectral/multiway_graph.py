@@ -115,10 +115,10 @@ def _poses_from_pairs(
 
 
 def _reached(n: int, links: list[tuple[int, int]]) -> set[int]:
-    """The clouds a chain of ``links`` (pairs of cloud indices) joins to cloud 0."""
-    tree = maximum_spanning_tree(n, [(i, j, 0.0) for i, j in links])
-    return {k for k, pose in enumerate(_chained(n, tree, {e: np.eye(4) for e in tree}))
-            if pose is not None}
+    """The clouds a chain of ``links`` (pairs of cloud indices) joins to cloud 0: those
+    :func:`_chained` places along them."""
+    placed = _chained(n, links, dict.fromkeys(links, np.eye(4)))
+    return {k for k, pose in enumerate(placed) if pose is not None}
 
 
 def checked_clouds(clouds: Sequence[object]) -> list[CloudArrays]:
