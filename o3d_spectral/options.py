@@ -261,6 +261,15 @@ class GlobalSearchOption:
         confident of several is no longer calibrated: wrong poses so chosen are warned
         less often (the warning's recall 0.91 -> 0.78 on the calibration's held-back
         calls), hence off by default.
+    turns : int, default 12
+        Where the returned pose may be wrong (its calibrated confidence under one half)
+        and the motion its inliers resist least is a turn they barely hold (two views of
+        a mug, whose body fits at any turn about its axis and whose handle then misses),
+        the pose is turned about that axis in this many even steps, the turns polished
+        briefly and the best two polished and measured whole; the most confident result
+        whose inliers hold every motion is returned, >= 0; 0 never. Not in a scene (a
+        turned object finds other surfaces to fit there). Calls whose pose is not in
+        doubt pay nothing; the others 0.03-0.6 s on the bench.
     workers : int or None, default None
         Threads the independent parts of the search run on, >= 1 (placements, the
         sweep's batches, the confirmation's polishes, the climbs, the ascent's starts);
@@ -282,6 +291,7 @@ class GlobalSearchOption:
     peak_ascent: bool = True
     coarse_placements: int = 16
     second_opinions: int = 0
+    turns: int = 12
     workers: int | None = None
 
     def __post_init__(self) -> None:
@@ -290,6 +300,7 @@ class GlobalSearchOption:
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
         check_int("second_opinions", self.second_opinions, low=0)
+        check_int("turns", self.turns, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")
         for name in ("hypothesis_iterations", "focus_places", "scene_hypotheses"):
             check_int(name, getattr(self, name), low=1)

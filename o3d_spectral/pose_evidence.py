@@ -38,6 +38,7 @@ few distance queries on one KD-tree:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -48,7 +49,8 @@ from .io.cloud import MIN_POINTS
 from .io.rows import known
 
 __all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
-           "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "SUPPORT_FLOOR", "motion_support"]
+           "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "SUPPORT_FLOOR", "motion_support",
+           "Motion", "least_supported_motion", "weakest_motion"]
 
 #: Normals closer than this (degrees, either sign) agree.
 NORMAL_AGREEMENT_ANGLE = 30.0
@@ -162,17 +164,11 @@ def pose_evidence(
     PoseEvidence
     """
     v = float(voxel_size)
-    R, t = pose[:3, :3], pose[:3, 3]
-    posed, normals = source_points @ R.T + t, source_normals @ R.T
+    posed, normals, facing = _shown(source_points, source_normals, pose, sensor, two_sided)
     centre = posed.mean(axis=0)
     radius = float(np.sqrt(np.max(np.sum((posed - centre) ** 2, axis=1)))) + 2.0 * v
     near = np.sum((target_points - centre) ** 2, axis=1) <= radius * radius
     near_points, near_normals = target_points[near], target_normals[near]
-    facing = np.ones(len(posed), dtype=bool)
-    if sensor is not None and not two_sided:  # what the sensor could see of the source
-        facing = np.einsum("ij,ij->i", normals, sensor - posed) > 0.0
-        if facing.sum() < MIN_POINTS:
-            facing[:] = True
     shown, shown_normals = posed[facing], normals[facing]
     rival = {"rival_fit": float(rival_fit), "ambiguous": bool(ambiguous),
              "rival_self_match": float(rival_self_match), "two_views": bool(two_views)}
@@ -211,20 +207,73 @@ def pose_evidence(
                         motion_support=support)
 
 
-def motion_support(
+class Motion(NamedTuple):
+    """A small rigid motion about ``centre``: each point ``p`` moves by
+    ``rotation x (p - centre) + translation``, and the share of the constraint on it
+    that the inliers carry (:func:`least_supported_motion`); ``radius``, the points' RMS
+    distance to ``centre`` (metres: a rotation times it is comparable with a
+    translation)."""
+
+    share: float
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+    centre: NDArray[np.float64]
+    radius: float
+
+
+def least_supported_motion(
     points: NDArray[np.float64], normals: NDArray[np.float64], inlier: NDArray[np.bool_]
-) -> float:
-    """The least share, over the rigid motions, of the points' constraint on a motion that
-    the ``inlier`` points carry, in [0, 1].
+) -> Motion:
+    """The rigid motion whose constraint the ``inlier`` points carry the least share of.
 
     A point ``p`` (metres) with unit normal ``n`` resists the small motion of rotation
     ``w`` about the points' centroid ``c`` and translation ``u`` by
     ``r = ((p - c) / L x n) . w + n . u`` (point-to-plane ICP's linearised residual;
     ``L``, the points' RMS distance to ``c``, makes ``w`` a length). With ``A`` the sum of
     ``r``'s squared coefficients over every point and ``B`` over the inliers, both
-    6 x 6, the share along a motion ``x`` is ``x^T B x / x^T A x``; its least is the
+    6 x 6, the share along a motion ``x`` is ``x^T B x / x^T A x``; the least is the
     smallest generalised eigenvalue of ``(B, A)``, each plus :data:`SUPPORT_FLOOR` times
-    ``trace(A) / 6`` on its diagonal.
+    ``trace(A) / 6`` on its diagonal, and its eigenvector the motion (Gelfand et al.'s
+    geometric stability, 2003).
+
+    Parameters
+    ----------
+    points, normals : ndarray, shape (M, 3)
+        Points (metres) and their unit normals, M >= 1.
+    inlier : ndarray of bool, shape (M,)
+
+    Returns
+    -------
+    Motion
+        The share in [0, 1]; the rotation (radians per unit of the motion) and the
+        translation of ``c`` (metres), of unit length together once the rotation is
+        scaled by ``L``.
+    """
+    rows, centre, scale = _constraint_rows(points, normals)
+    every, inliers = rows.T @ rows, rows[inlier].T @ rows[inlier]
+    floor = SUPPORT_FLOOR * np.trace(every) / 6.0 * np.eye(6)
+    values, vectors = scipy.linalg.eigh(inliers + floor, every + floor)
+    motion = vectors[:, 0] / max(float(np.linalg.norm(vectors[:, 0])), 1e-300)
+    return Motion(float(min(max(values[0], 0.0), 1.0)), motion[:3] / scale, motion[3:], centre,
+                  scale)
+
+
+def _constraint_rows(
+    points: NDArray[np.float64], normals: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Each point's resistance to the six small motions about the points' centroid (rows
+    (M, 6) of :func:`least_supported_motion`), the centroid (3,) and the points' RMS
+    distance to it (metres)."""
+    centre = points.mean(axis=0)
+    scale = max(float(np.sqrt(np.mean(np.sum((points - centre) ** 2, axis=1)))), 1e-12)
+    return np.hstack([np.cross((points - centre) / scale, normals), normals]), centre, scale
+
+
+def motion_support(
+    points: NDArray[np.float64], normals: NDArray[np.float64], inlier: NDArray[np.bool_]
+) -> float:
+    """The least share, over the rigid motions, of the points' constraint on a motion that
+    the ``inlier`` points carry, in [0, 1] (:func:`least_supported_motion`'s share).
 
     Parameters
     ----------
@@ -236,13 +285,56 @@ def motion_support(
     -------
     float
     """
-    centre = points.mean(axis=0)
-    scale = float(np.sqrt(np.mean(np.sum((points - centre) ** 2, axis=1))))
-    rows = np.hstack([np.cross((points - centre) / max(scale, 1e-12), normals), normals])
-    every, inliers = rows.T @ rows, rows[inlier].T @ rows[inlier]
-    floor = SUPPORT_FLOOR * np.trace(every) / 6.0 * np.eye(6)
-    least = scipy.linalg.eigh(inliers + floor, every + floor, eigvals_only=True)[0]
-    return float(min(max(least, 0.0), 1.0))
+    return least_supported_motion(points, normals, inlier).share
+
+
+def weakest_motion(
+    source_points: NDArray[np.float64], source_normals: NDArray[np.float64],
+    pose: NDArray[np.float64], voxel_size: float, tree: cKDTree, *,
+    sensor: NDArray[np.float64] | None = None, two_sided: bool = False,
+) -> Motion | None:
+    """The motion the inliers of ``pose`` resist least, measured as
+    :func:`pose_evidence` measures the motion support (the source points the target's
+    sensor could see, inliers within a voxel of the target); None where too few points
+    have normals.
+
+    Parameters
+    ----------
+    source_points, source_normals, pose, voxel_size, sensor, two_sided
+        As for :func:`pose_evidence`.
+    tree : scipy.spatial.cKDTree
+        A KD-tree of the target's points.
+
+    Returns
+    -------
+    Motion or None
+        In the target's frame.
+    """
+    posed, normals, facing = _shown(source_points, source_normals, pose, sensor, two_sided)
+    shown, shown_normals = posed[facing], normals[facing]
+    has_normal = known(shown_normals)
+    if has_normal.sum() < MIN_POINTS:
+        return None
+    distance, _ = tree.query(shown[has_normal], distance_upper_bound=float(voxel_size))
+    return least_supported_motion(shown[has_normal], shown_normals[has_normal],
+                                  np.isfinite(distance))
+
+
+def _shown(
+    source_points: NDArray[np.float64], source_normals: NDArray[np.float64],
+    pose: NDArray[np.float64], sensor: NDArray[np.float64] | None, two_sided: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """The source points and normals posed, and which of them face ``sensor`` (what it
+    could see of the source; all of them where it is None, the source is two-sided, or
+    fewer than :data:`MIN_POINTS` would)."""
+    R, t = pose[:3, :3], pose[:3, 3]
+    posed, normals = source_points @ R.T + t, source_normals @ R.T
+    facing = np.ones(len(posed), dtype=bool)
+    if sensor is not None and not two_sided:
+        facing = np.einsum("ij,ij->i", normals, sensor - posed) > 0.0
+        if facing.sum() < MIN_POINTS:
+            facing[:] = True
+    return posed, normals, facing
 
 
 def _free_space(

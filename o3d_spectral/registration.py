@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .diagnostics import may_be_wrong
 from .law import Climb
+from .opinions import second_opinion, turn_opinion
 from .options import (
     CloudOption,
     GlobalSearchOption,
@@ -31,7 +32,7 @@ from .result import SpectralRegistrationResult
 from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start
 from .search import GlobalSearch, Ranking
 from .search.confirmation import Confirmation
-from .search.poses import confidence, distinct
+from .search.poses import confidence
 from .stages import StageClock
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global",
@@ -174,10 +175,15 @@ def registration_spectral_global(
        placed pose, as the confirmation polished it, lies clearly closer to the target
        than the result, it is polished and returned instead
        (:func:`o3d_spectral.search.confirmation.closer`);
-    7. **second_opinions**: where the search ran and the returned pose may be wrong (its
+    7. **turns**: not in a scene, where the returned pose may be wrong (its calibrated
+       confidence under one half) and its inliers barely hold a turn about some axis,
+       the pose turned about that axis and the best turns polished and measured, the most
+       confident whose inliers hold every motion returned
+       (:func:`o3d_spectral.opinions.turn_opinion`; ``search.turns``);
+    8. **second_opinions**: where the search ran and the returned pose may be wrong (its
        calibrated confidence under one half), the other climbs' poses climbed on,
-       polished and measured, and the most confident returned (:func:`second_opinion`;
-       ``search.second_opinions``).
+       polished and measured, and the most confident returned
+       (:func:`o3d_spectral.opinions.second_opinion`; ``search.second_opinions``).
 
     Against a single view the search correlates the view with the model as the sensor
     would see it; against a whole scene it focuses on the scene's normals where the
@@ -247,6 +253,10 @@ def registration_spectral_global(
                 best, pose, result = placed_result(run, placed)
                 result = finish(run, result, best, pose @ run.init, refinement,
                                 max_correspondence_distance)
+    if search.turns and not run.situation.scene and may_be_wrong(result.confidence):
+        with clock.stage("turns"):
+            result = turn_opinion(run, finder, result, climbed, search.turns, refinement,
+                                  max_correspondence_distance)
     if confirmed is None and search.second_opinions and may_be_wrong(result.confidence):
         with clock.stage("second_opinions"):
             result = second_opinion(run, result, climbed, search.second_opinions, refinement,
@@ -309,43 +319,6 @@ def searched(run: Run, finder: GlobalSearch, ranking: Ranking, clock: StageClock
             pose = ascended.transformation(run.moving.centroid)
             result.translation_peak = ascended.translation_peak
     return Searched(climbs[0], pose, result, climbed)
-
-
-def second_opinion(
-    run: Run, result: SpectralRegistrationResult,
-    climbed: list[tuple[NDArray[np.float64], float]], count: int,
-    refinement: RefinementOption | None, max_correspondence_distance: float | None,
-) -> SpectralRegistrationResult:
-    """``result``, or the most confident of the climbed poses distinct from it.
-
-    Where the returned pose may be wrong (its calibrated confidence is under one half),
-    the search's other climbs may hold the right one: up to ``count`` of ``climbed``
-    (the climbs' best iterates, best first, 4x4 in the run's frame with their scores),
-    distinct from the returned pose and from one another, are each climbed on by the law
-    to convergence, polished and measured as the returned pose was
-    (:func:`o3d_spectral.run.finish`); the result of the highest confidence is kept, the
-    returned one where none is higher.
-    """
-    to_moving = np.linalg.inv(run.init)
-    seen = [run.moving_pose(result.transformation)]
-    kept = result
-    for matrix, _ in climbed:
-        if len(seen) > count:  # the returned pose and ``count`` others
-            break
-        pose = matrix @ to_moving
-        if not all(distinct(pose, other) for other in seen):
-            continue
-        seen.append(pose)
-        state = Climb.at(pose, run.moving.centroid)
-        run.climb(state, run.criteria.max_iteration)
-        other = SpectralRegistrationResult()
-        other.hypotheses, other.search_margin = list(climbed), result.search_margin
-        other.translation_peak = state.history[-1].translation_peak
-        other = finish(run, other, state, state.matrix() @ run.init, refinement,
-                       max_correspondence_distance)
-        if other.confidence > kept.confidence:
-            kept = other
-    return kept
 
 
 for _call in (registration_spectral, registration_spectral_global):

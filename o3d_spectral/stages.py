@@ -18,10 +18,10 @@ __all__ = ["StageClock", "GLOBAL_STAGES", "LOCAL_STAGES"]
 
 #: The stages of :func:`o3d_spectral.registration_spectral_global`, in the order they can
 #: run (a call runs a subset: ``confirm`` not in a scene, ``sweep`` and ``ascent`` between
-#: two scans only, ``climbs`` where nothing was confirmed, ``second_opinions`` where the
-#: climbed pose may be wrong).
+#: two scans only, ``climbs`` where nothing was confirmed, ``turns`` where the pose may be
+#: wrong, ``second_opinions`` where the climbed pose still may be).
 GLOBAL_STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish",
-                 "second_opinions")
+                 "turns", "second_opinions")
 #: The stages of :func:`o3d_spectral.registration_spectral`.
 LOCAL_STAGES = ("prepare", "law", "polish")
 
