@@ -20,6 +20,7 @@ from .io.cloud import CloudArrays, as_arrays
 from .io.units import MAX_EXTENT_RATIO, span
 from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
 from .parallel import one_open3d_thread, thread_map
+from .pose_evidence import leaves_motion_free
 from .refinement import point_to_plane_icp
 
 __all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",
@@ -87,8 +88,11 @@ def _poses_from_pairs(
     downs = thread_map(lambda a: _down_sampled(a, voxel_size), arrays, option.workers)
     distance = option.distance_voxels * voxel_size
     centres = [a.points.mean(axis=0) for a in arrays]
-    records, tree, poses = _placed(n, [selected(r, option) for r in records], centres,
-                                   voxel_size, option)
+    free = [leaves_motion_free(np.asarray(d.points), np.asarray(d.normals)) for d in downs]
+    records = [dataclasses.replace(selected(r, option),
+                                   determined=not (free[r.source] or free[r.target]))
+               for r in records]
+    records, tree, poses = _placed(n, records, centres, voxel_size, option)
     kept = [r for r in records if r.kept]
     nodes = tuple(k for k in range(n) if poses[k] is not None)
     edges = [(r.source, r.target, r.transformation,
@@ -173,10 +177,13 @@ def tree_weight(record: PairwiseRecord, option: MultiwayOption) -> float:
     """A kept pair's weight in the maximum spanning tree: its ``fit``, less 1 when it
     does not lead its ``rival_fit`` by ``option.rival_margin`` (a pair of views of a
     symmetric object has a rival as good, its symmetric pose, and may still be right),
-    and less 2 when the pairwise call warned about it (:func:`confident`): such pairs
-    join the tree only where no leading, confident one does."""
+    less 2 when one of its clouds leaves a motion free (``record.determined``: the pose
+    is one of a continuum, a weaker claim than one of two rivals), and less 4 when the
+    pairwise call warned about it (:func:`confident`). Each kind of pair joins the tree
+    only where none of the kinds before it does."""
     led = record.fit - record.rival_fit >= option.rival_margin
-    return record.fit - (0.0 if led else 1.0) - (0.0 if confident(record, option) else 2.0)
+    return (record.fit - (0.0 if led else 1.0) - (0.0 if record.determined else 2.0)
+            - (0.0 if confident(record, option) else 4.0))
 
 
 def _placed(

@@ -136,6 +136,11 @@ class PairwiseRecord:
         The pairwise result's calibrated confidence
         (:attr:`o3d_spectral.SpectralRegistrationResult.confidence`); None for a method
         that gives none.
+    determined : bool
+        Neither cloud leaves a rigid motion free
+        (:func:`o3d_spectral.pose_evidence.leaves_motion_free`): a view showing only a
+        body of revolution (a mug with its handle hidden) fixes a pair's pose up to a turn
+        about its axis at best, however well it fits. Set from the clouds.
     """
 
     source: int
@@ -147,6 +152,7 @@ class PairwiseRecord:
     kept: bool
     uncertain: bool
     confidence: float | None = None
+    determined: bool = True
 
 
 @dataclass(frozen=True)

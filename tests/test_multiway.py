@@ -16,6 +16,7 @@ from o3d_spectral.multiway import poses_from_pairs
 from o3d_spectral.multiway_graph import tree_weight
 from o3d_spectral.pose_errors import rotation_error, translation_error
 from o3d_spectral.synthetic.models import model_path
+from tests.conftest import sample_model
 
 VOXEL = 0.005
 
@@ -216,3 +217,35 @@ def test_a_warned_pair_joins_the_tree_only_where_no_confident_pair_does():
 
     warned, tied, plain = record(0.99, 0.0, 0.3), record(0.4, 0.4, 0.9), record(0.4, 0.4, None)
     assert tree_weight(warned, option) < tree_weight(tied, option) == tree_weight(plain, option)
+
+
+def test_a_pair_that_a_view_leaves_a_turn_free_joins_the_tree_after_rivalled_pairs():
+    """A pair holding a view that leaves a motion free (a mug's body with its handle
+    hidden) is right at best up to a turn: it ranks below a pair with a rival as good,
+    above a warned one, whatever its fit."""
+    option = o3d_spectral.MultiwayOption()
+
+    def record(fit: float, rival: float, confidence: float, determined: bool = True):
+        return o3d_spectral.PairwiseRecord(0, 1, np.eye(4), fit, fit, rival, kept=True,
+                                           uncertain=True, confidence=confidence,
+                                           determined=determined)
+
+    free = record(1.0, 0.0, 0.999, determined=False)
+    rivalled, warned = record(0.4, 0.4, 0.9), record(1.0, 0.0, 0.3)
+    assert tree_weight(warned, option) < tree_weight(free, option) < tree_weight(rivalled, option)
+
+
+def test_pairs_are_marked_undetermined_from_a_cloud_that_leaves_a_motion_free():
+    """Three clouds, the second a cylinder's side alone (its turn and its slide free):
+    both of its pairs are undetermined, the pair of the other two is not."""
+    rng = np.random.default_rng(0)
+    box = sample_model("cracker_box", 4000)
+    side = rng.uniform([0.0, -0.08], [2.0 * np.pi, 0.08], size=(6000, 2))
+    tube = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
+        np.c_[0.05 * np.cos(side[:, 0]), 0.05 * np.sin(side[:, 0]), side[:, 1]]))
+    records = [o3d_spectral.PairwiseRecord(i, j, np.eye(4), 0.9, 0.9, 0.0, kept=False,
+                                           uncertain=True)
+               for i, j in ((0, 1), (0, 2), (1, 2))]
+    result = poses_from_pairs([box, tube, o3d.geometry.PointCloud(box)], VOXEL, records)
+    assert {(r.source, r.target): r.determined for r in result.pairs} == {
+        (0, 1): False, (0, 2): True, (1, 2): False}

@@ -1,12 +1,13 @@
 """Turns of a doubtful pose about the axis its inliers hold least
-(o3d_spectral.search.turns, the ``turns`` stage of the global call)."""
+(o3d_spectral.search.turns, the ``turns`` stage of the global call), and the surfaces that
+leave a motion free (o3d_spectral.pose_evidence.leaves_motion_free)."""
 
 import numpy as np
 import pytest
 
 import o3d_spectral
 from o3d_spectral.harness.metrics import instance_score
-from o3d_spectral.pose_evidence import least_supported_motion
+from o3d_spectral.pose_evidence import least_supported_motion, leaves_motion_free
 from o3d_spectral.search.turns import MAX_SUPPORT, holds_turn, turn_axis, turned
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.sampling import rigid
@@ -73,6 +74,22 @@ def test_turned_poses_turn_about_the_axis_in_even_steps():
             min(30.0 * k, 360.0 - 30.0 * k) * np.pi / 180.0, abs=1e-6)
         assert np.allclose(turned_pose[:3, :3] @ on_axis + turned_pose[:3, 3],
                            pose[:3, :3] @ on_axis + pose[:3, 3], atol=1e-12)
+
+
+def test_a_body_of_revolution_alone_leaves_its_turn_free_and_a_handle_holds_it():
+    """A cup (side and bottom) without its tab leaves the turn about its axis free; with
+    the tab (6% of the points) every motion is held; so is a box's corner."""
+    points, normals, tab = mug_like(np.random.default_rng(4))
+    rng = np.random.default_rng(5)
+    disc = np.sqrt(rng.uniform(0.0, 0.04**2, 300)) * np.exp(1j * rng.uniform(0, 2 * np.pi, 300))
+    bottom = np.c_[disc.real, disc.imag, np.full(300, -0.05)]
+    down = np.tile([0.0, 0.0, -1.0], (300, 1))
+    assert leaves_motion_free(np.r_[points[~tab], bottom], np.r_[normals[~tab], down])
+    assert not leaves_motion_free(np.r_[points, bottom], np.r_[normals, down])
+    faces = [np.c_[rng.uniform(0, 0.1, (500, 2)), np.zeros(500)][:, order]
+             for order in ([0, 1, 2], [0, 2, 1], [2, 0, 1])]
+    corner_normals = np.repeat(np.eye(3)[[2, 1, 0]], 500, axis=0)
+    assert not leaves_motion_free(np.concatenate(faces), corner_normals)
 
 
 def test_two_views_of_the_mug_showing_its_handle_are_turned_to_the_right_pose():
