@@ -23,7 +23,8 @@ records:
   with the others, as the search ranks them after a sweep; between two scans only the
   best on a coarse grid are placed): the rank of the generator's first right candidate;
 * whether the confirmation's pose is right and whether it stopped the search, whether a
-  climbed start, the climbs' best, the ascent and the final result are right; the stage
+  climbed start, the climbs' best, the ascent and the final result (after the turns of a
+  doubtful pose, ``o3d_spectral.opinions.turn_opinion``) are right; the stage
   that loses the truth is the first of those after which no right pose is left, on pairs
   whose final pose is wrong.
 
@@ -53,10 +54,12 @@ import open3d as o3d  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from o3d_spectral import GlobalSearchOption  # noqa: E402
+from o3d_spectral.diagnostics import may_be_wrong  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import symmetric_rotation_error  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
 from o3d_spectral.harness.writers import write_rows  # noqa: E402
+from o3d_spectral.opinions import turn_opinion  # noqa: E402
 from o3d_spectral.registration import placed_result, searched  # noqa: E402
 from o3d_spectral.run import DEFAULT_REFINEMENT, Run, finish, start  # noqa: E402
 from o3d_spectral.search import GlobalSearch  # noqa: E402
@@ -215,12 +218,16 @@ def pipeline(pair: Pair, run: Run, finder: GlobalSearch) -> dict:
         if finder.ascends:
             out["ascent_right"] = right(pair, pose)
     out["before_polish_right"] = right(pair, pose)
+    climbed = list(result.hypotheses)
     result = finish(run, result, best, pose @ run.init, DEFAULT_REFINEMENT, None)
     if confirmed is None:
         placed = finder.closer_placed(ranking, run.moving_pose(result.transformation))
         if placed is not None:
             best, pose, result = placed_result(run, placed)
             result = finish(run, result, best, pose @ run.init, DEFAULT_REFINEMENT, None)
+    if finder.option.turns and not run.situation.scene and may_be_wrong(result.confidence):
+        result = turn_opinion(run, finder, result, climbed, finder.option.turns,
+                              DEFAULT_REFINEMENT, None)
     out["transformation"] = np.asarray(result.transformation)
     return out
 
