@@ -21,7 +21,7 @@ from .run import Run, finish
 from .search import GlobalSearch
 from .search.confirmation import fit
 from .search.poses import distinct
-from .search.turns import MAX_SUPPORT, TURN_FINISHES, holds_turn, turn_axis, turned
+from .search.turns import TURN_FINISHES, holds_every_motion, turn_axis, turned
 
 __all__ = ["second_opinion", "turn_opinion"]
 
@@ -74,7 +74,7 @@ def turn_opinion(
     Where that motion is a turn the inliers barely resist, the returned pose is turned
     about its axis by each multiple of ``360 / count`` degrees, each turn polished and
     measured briefly (:func:`o3d_spectral.search.confirmation.fit`). Of the turns whose
-    inliers then hold every motion (:func:`o3d_spectral.search.turns.holds_turn`), the
+    inliers then hold every motion (:func:`o3d_spectral.search.turns.holds_every_motion`), the
     :data:`TURN_FINISHES` best fitting distinct ones are polished and measured as the
     returned pose was (:func:`o3d_spectral.run.finish`); the most confident result that
     still holds every motion is kept, the returned one where none is more confident.
@@ -93,7 +93,8 @@ def turn_opinion(
             break
         if not all(distinct(other_fit.pose, other) for other in seen):
             continue
-        if not holds_turn(_weakest_motion(run, other_fit.pose)):
+        motion = _weakest_motion(run, other_fit.pose)
+        if motion is not None and not holds_every_motion(motion.share):
             continue
         seen.append(other_fit.pose)
         other = SpectralRegistrationResult()
@@ -101,7 +102,8 @@ def turn_opinion(
         other.confirmed = result.confirmed
         other = finish(run, other, Climb.at(other_fit.pose, run.moving.centroid),
                        other_fit.pose @ run.init, refinement, max_correspondence_distance)
-        if other.confidence > kept.confidence and other.pose_evidence.motion_support > MAX_SUPPORT:
+        if other.confidence > kept.confidence and holds_every_motion(
+                other.pose_evidence.motion_support):
             kept = other
     return kept
 

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from ..pose_evidence import Motion
 from ..spectra import so3
 
-__all__ = ["Axis", "turn_axis", "turned", "holds_turn", "MIN_ROTATION_SHARE", "MAX_SUPPORT",
+__all__ = ["Axis", "turn_axis", "turned", "holds_every_motion", "MIN_ROTATION_SHARE", "MAX_SUPPORT",
            "TURN_FINISHES"]
 
 #: The least-supported motion is taken as a turn when its rotation (scaled by the
@@ -54,7 +54,7 @@ def turn_axis(motion: Motion | None) -> Axis | None:
     ``c + w x u / |w|^2`` and a slide ``u . w / |w|`` along it. The motion is a turn
     where the turn (``|w|`` times the points' radius) is most of the two.
     """
-    if motion is None or holds_turn(motion):
+    if motion is None or holds_every_motion(motion.share):
         return None
     rate = float(np.linalg.norm(motion.rotation))
     if rate == 0.0:
@@ -66,13 +66,14 @@ def turn_axis(motion: Motion | None) -> Axis | None:
     return Axis(direction, motion.centre + np.cross(motion.rotation, motion.translation) / rate**2)
 
 
-def holds_turn(motion: Motion | None) -> bool:
+def holds_every_motion(support: float) -> bool:
     """Whether a pose's inliers carry over :data:`MAX_SUPPORT` of the constraint on the
-    motion they resist least (every motion; True where too few points have normals to
-    tell). A turn found by :func:`turned` is kept only where it resolves what made the
-    search turn (the handle then lands on the handle): a turn that leaves a motion as
-    poorly held only trades one doubtful pose for another."""
-    return motion is None or motion.share > MAX_SUPPORT
+    motion they resist least (``support``: a :class:`~o3d_spectral.pose_evidence.Motion`'s
+    share, or ``PoseEvidence.motion_support``). A turn found by :func:`turned` is kept
+    only where it resolves what made the search turn (the handle then lands on the
+    handle): a turn that leaves a motion as poorly held only trades one doubtful pose for
+    another."""
+    return support > MAX_SUPPORT
 
 
 def turned(pose: NDArray[np.float64], axis: Axis, count: int) -> list[NDArray[np.float64]]:
