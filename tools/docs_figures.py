@@ -526,12 +526,22 @@ def _column(rows: list[dict], key: str) -> list[float]:
     return [float(r[key]) for r in rows]
 
 
+#: A wrong turntable pose within this many degrees of the turntable's angle is the view
+#: turned as if the camera had not moved.
+TURNED_BY_ANGLE = 15.0
+
+
 def _recall_turntable() -> str:
     generators, stages, pairs = _recall_run("turntable")
     wrong = [r for r in pairs if r["success"] != "True" and int(r["angle"]) >= FAR_TURNTABLE]
     objects = _counted([r["pair"].rsplit("_", 1)[0] for r in wrong])
     lost = _counted([f"`{r['lost_at']}`" for r in wrong])
-    off = max(abs(float(r["final_rotation_deg"]) - int(r["angle"])) for r in wrong)
+    offs = [abs(float(r["final_rotation_deg"]) - int(r["angle"])) for r in wrong]
+    turned = [off for off in offs if off <= TURNED_BY_ANGLE]
+    rest = sorted(float(r["final_rotation_deg"]) for r, off in zip(wrong, offs, strict=True)
+                  if off > TURNED_BY_ANGLE)
+    others = (f" (the other{'s' if len(rest) > 1 else ''} "
+              f"{', '.join(f'{x:.0f}' for x in rest)} degrees off)") if rest else ""
     climbs = span(_column([r for r in stages if int(r["angle"]) >= FAR_TURNTABLE],
                              "climbs_right"), scale=100)
     recall = {g: span(_column(rows, "recall_at_all"), scale=100)
@@ -543,7 +553,8 @@ def _recall_turntable() -> str:
         f"{recall['egi']}%, the sweep's on {recall['sweep']}%, and the search ends right on "
         f"{span(_column(stages, 'success'), scale=100)}% of pairs at every angle. From "
         f"{FAR_TURNTABLE} degrees the wrong poses are, by object, {objects}; lost at {lost}; "
-        f"each turned from the truth by the turntable's angle, to within {off:.0f} degrees. "
+        f"{len(turned)} of {len(wrong)} turned from the truth by the turntable's angle, to "
+        f"within {max(turned, default=0.0):.0f} degrees{others}. "
         f"There the climbs' best is right on {climbs}% of the pairs searched."
     )
 
