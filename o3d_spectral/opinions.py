@@ -53,11 +53,9 @@ def second_opinion(
         seen.append(pose)
         state = Climb.at(pose, run.moving.centroid)
         run.climb(state, run.criteria.max_iteration)
-        other = SpectralRegistrationResult()
-        other.hypotheses, other.search_margin = list(climbed), result.search_margin
+        other = _measured(run, result, climbed, state, state.matrix(), refinement,
+                          max_correspondence_distance)
         other.translation_peak = state.history[-1].translation_peak
-        other = finish(run, other, state, state.matrix() @ run.init, refinement,
-                       max_correspondence_distance)
         if other.confidence > kept.confidence:
             kept = other
     return kept
@@ -97,11 +95,9 @@ def turn_opinion(
         if motion is not None and not holds_every_motion(motion.share):
             continue
         seen.append(other_fit.pose)
-        other = SpectralRegistrationResult()
-        other.hypotheses, other.search_margin = list(climbed), result.search_margin
+        other = _measured(run, result, climbed, Climb.at(other_fit.pose, run.moving.centroid),
+                          other_fit.pose, refinement, max_correspondence_distance)
         other.confirmed = result.confirmed
-        other = finish(run, other, Climb.at(other_fit.pose, run.moving.centroid),
-                       other_fit.pose @ run.init, refinement, max_correspondence_distance)
         if other.confidence > kept.confidence and holds_every_motion(
                 other.pose_evidence.motion_support):
             kept = other
@@ -115,3 +111,16 @@ def _weakest_motion(run: Run, pose: NDArray[np.float64]) -> Motion | None:
     return weakest_motion(run.moving.points, run.moving.point_normals, pose,
                           stepper.voxel_size, stepper.normals_tree, sensor=stepper.viewpoint,
                           two_sided=run.moving.reading.two_sided)
+
+
+def _measured(
+    run: Run, result: SpectralRegistrationResult,
+    climbed: list[tuple[NDArray[np.float64], float]], state: Climb, pose: NDArray[np.float64],
+    refinement: RefinementOption | None, max_correspondence_distance: float | None,
+) -> SpectralRegistrationResult:
+    """A new result for ``pose`` (4, 4, the run's frame, reached by ``state``), polished
+    and measured as ``result`` was (:func:`o3d_spectral.run.finish`), with ``climbed`` as
+    its hypotheses and ``result``'s search margin."""
+    other = SpectralRegistrationResult()
+    other.hypotheses, other.search_margin = list(climbed), result.search_margin
+    return finish(run, other, state, pose @ run.init, refinement, max_correspondence_distance)

@@ -187,10 +187,9 @@ def pose_evidence(
             "ij,ij->i", shown[inlier] - found_points[j], found_normals[j])))) / v
         cosine = np.abs(np.einsum("ij,ij->i", shown_normals[inlier], found_normals[j]))
         agreement = float(np.mean(cosine > np.cos(np.deg2rad(NORMAL_AGREEMENT_ANGLE))))
-    has_normal = known(shown_normals)
-    if has_normal.sum() >= MIN_POINTS:  # with no inlier, the floor's share of it
-        support = motion_support(shown[has_normal], shown_normals[has_normal],
-                                 inlier[has_normal])
+    weakest = _weakest_of(shown, shown_normals, inlier)  # no inlier: the floor's share
+    if weakest is not None:
+        support = weakest.share
     inside = near_points[np.sum((near_points - centre) ** 2, axis=1) <= (radius - v) ** 2]
     target_fit = 1.0
     if len(inside):
@@ -292,18 +291,8 @@ def motion_support(
     points: NDArray[np.float64], normals: NDArray[np.float64], inlier: NDArray[np.bool_]
 ) -> float:
     """The least share, over the rigid motions, of the points' constraint on a motion that
-    the ``inlier`` points carry, in [0, 1] (:func:`least_supported_motion`'s share).
-
-    Parameters
-    ----------
-    points, normals : ndarray, shape (M, 3)
-        Points (metres) and their unit normals, M >= 1.
-    inlier : ndarray of bool, shape (M,)
-
-    Returns
-    -------
-    float
-    """
+    the ``inlier`` points carry, in [0, 1]: :func:`least_supported_motion`'s share, for
+    the same arguments."""
     return least_supported_motion(points, normals, inlier).share
 
 
@@ -331,12 +320,19 @@ def weakest_motion(
     """
     posed, normals, facing = _shown(source_points, source_normals, pose, sensor, two_sided)
     shown, shown_normals = posed[facing], normals[facing]
-    has_normal = known(shown_normals)
+    distance, _ = tree.query(shown, distance_upper_bound=float(voxel_size))
+    return _weakest_of(shown, shown_normals, np.isfinite(distance))
+
+
+def _weakest_of(
+    points: NDArray[np.float64], normals: NDArray[np.float64], inlier: NDArray[np.bool_]
+) -> Motion | None:
+    """:func:`least_supported_motion` of the points that have a normal (zero rows have
+    none); None where fewer than :data:`MIN_POINTS` do."""
+    has_normal = known(normals)
     if has_normal.sum() < MIN_POINTS:
         return None
-    distance, _ = tree.query(shown[has_normal], distance_upper_bound=float(voxel_size))
-    return least_supported_motion(shown[has_normal], shown_normals[has_normal],
-                                  np.isfinite(distance))
+    return least_supported_motion(points[has_normal], normals[has_normal], inlier[has_normal])
 
 
 def _shown(
