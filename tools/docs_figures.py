@@ -404,6 +404,36 @@ def speed() -> str:
     ])
 
 
+def speed_stages() -> str:
+    """Where the spectral call's time goes, per group: each stage's median seconds and its
+    multiple of the lean FPFH-RANSAC's whole call, from ``eval/bench_stages.py``'s rows."""
+    rows = read_csv("speed_stages")
+    named = ("group", "instance", "confirmed", "total", "lean FPFH-RANSAC")
+    stages = [s for s in rows[0] if s not in named and any(float(r[s]) > 0 for r in rows)]
+    lines, beyond = [], []
+    for group in dict.fromkeys(r["group"] for r in rows):
+        mine = [r for r in rows if r["group"] == group]
+        lean = median([float(r["lean FPFH-RANSAC"]) for r in mine])
+        seconds = {s: median([float(r[s]) for r in mine]) for s in stages}
+        over = [s for s in stages if seconds[s] > lean]
+        if over:
+            beyond.append(group)
+        lines.append([group, str(len(mine)), f"{lean:.3f}",
+                      f"{median([float(r['total']) for r in mine]):.3f}",
+                      *("-" if seconds[s] == 0 else f"{seconds[s]:.3f} ({seconds[s] / lean:.2f}x)"
+                        for s in stages)])
+    return "\n".join([
+        table(["group", "n", "lean FPFH s", "spectral s", *stages], lines),
+        "",
+        f"Each stage's median seconds over the group's calls (- where the median call skipped "
+        f"it) and, in "
+        f"brackets, that as a multiple of the lean FPFH-RANSAC's median call. In "
+        f"{len(beyond)} of {len(lines)} groups at least one stage alone takes longer than "
+        f"the lean call whole. " + provenance("speed_stages") + " One call of each method per "
+        "instance, one thread.",
+    ])
+
+
 def cores() -> str:
     """What every core gains over one thread, per group, for both methods: the speed
     bench's one-thread medians over its ``--all-cores`` medians."""
@@ -855,6 +885,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "density": density,
     "speed": speed,
     "cores": cores,
+    "speed-stages": speed_stages,
     "voxel-trial": voxel_trial,
     "readme-speed": readme_speed,
     "recall": recall,
