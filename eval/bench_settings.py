@@ -6,7 +6,8 @@ changed at a time (:data:`SETTINGS`): the voxel one and a half times larger, the
 left out or without its wide pass, and the search's options a user would lower to trade
 success for time. For each setting and each kind of problem (views, scenes, scan pairs,
 real YCB-Video data), reports the median over the calls of the call's time over the same
-instance's time at the defaults, the calls right (success as ``bench_speed.py`` scores
+instance's time at the defaults and the ratio of their total times (what a batch of such
+calls saves), the calls right (success as ``bench_speed.py`` scores
 it: 5 degrees and 1 cm), those lost and won against the defaults, and the median rotation
 error of the right calls (degrees). Prints a Markdown table and writes ``rows.csv`` (one
 row per call) and ``summary.csv`` to ``--out``.
@@ -18,6 +19,7 @@ time ratio to within about 10%.
 
 Usage: python eval/bench_settings.py --suites out/suites --out out/bench_settings
        [--limit 6] [--rotations 1] [--groups full dragon_24 ...] [--settings defaults ...]
+       python eval/bench_settings.py --from-rows out/bench_settings/rows.csv --out DIR
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 # isort: on
 
 import argparse
+import csv
 import time
 from pathlib import Path
 
@@ -67,6 +70,7 @@ KINDS = {
     "scenes": ("cluttered", "crop_in_scene", "wide"),
     "scan pairs": ("turntable_45", "turntable_90", "turntable_135", "dragon_unoriented",
                    "dragon_24", "dragon_48", "dragon_72", "dragon_96", "dragon_120"),
+    "a model into a scan": ("dragon_model",),
     "real YCB-Video": ("ycbv_crop", "ycbv_frame"),
 }
 
@@ -104,6 +108,8 @@ def summarise(rows: list[dict], settings: list[str]) -> list[dict]:
                 "setting": setting, "kind": kind, "calls": len(picked),
                 "time_ratio_median": float(np.median([r["seconds"] / b["seconds"]
                                                       for r, b in pairs])),
+                "time_ratio_total": float(sum(r["seconds"] for r, _ in pairs)
+                                          / sum(b["seconds"] for _, b in pairs)),
                 "right": len(right),
                 "lost": sum(b["success"] and not r["success"] for r, b in pairs),
                 "won": sum(r["success"] and not b["success"] for r, b in pairs),
@@ -114,11 +120,13 @@ def summarise(rows: list[dict], settings: list[str]) -> list[dict]:
 
 
 def markdown(summary: list[dict]) -> str:
-    lines = ["| setting | problems | calls | time / defaults (median) | right | lost | won "
-             "| median rotation error of the right, deg |", "|" + " --- |" * 8]
+    lines = ["| setting | problems | calls | time / defaults (median) | time / defaults "
+             "(total) | right | lost | won | median rotation error of the right, deg |",
+             "|" + " --- |" * 9]
     for s in summary:
         lines.append(f"| {s['setting']} | {s['kind']} | {s['calls']} "
-                     f"| {s['time_ratio_median']:.2f} | {s['right']} | {s['lost']} "
+                     f"| {s['time_ratio_median']:.2f} | {s['time_ratio_total']:.2f} "
+                     f"| {s['right']} | {s['lost']} "
                      f"| {s['won']} | {s['rotation_error_median_deg']:.2f} |")
     return "\n".join(lines)
 
@@ -132,7 +140,13 @@ def main() -> None:
     parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
                         default=list(speed.ALL_GROUPS))
     parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS))
+    parser.add_argument("--from-rows", type=Path,
+                        help="summarise a stored rows.csv again instead of running")
     args = parser.parse_args()
+    if args.from_rows is not None:
+        rows = read_rows(args.from_rows)
+        report(rows, list(dict.fromkeys(r["setting"] for r in rows)), args.out)
+        return
     settings = ["defaults", *(s for s in args.settings if s != "defaults")]
     groups = [g for g in args.groups if args.suites is not None or g not in speed.SUITE_GROUPS]
     tasks = [t for g in groups for t in speed.group_tasks(g, args.suites, args.rotations,
@@ -145,13 +159,26 @@ def main() -> None:
         for setting in settings:
             rows.append({"group": task.group, "instance": task.name, "setting": setting,
                          **call(task, SETTINGS[setting])})
+    report(rows, settings, args.out)
+
+
+def report(rows: list[dict], settings: list[str], out: Path) -> None:
+    """Write ``rows`` and their summary to ``out`` and print the summary's table."""
+    out.mkdir(parents=True, exist_ok=True)
+    write_rows(out / "rows.csv", rows)
     summary = summarise(rows, settings)
-    table = markdown(summary)
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_rows(args.out / "rows.csv", rows)
-    write_rows(args.out / "summary.csv", summary)
-    print(table)
-    print(f"wrote {args.out / 'rows.csv'}, summary.csv")
+    write_rows(out / "summary.csv", summary)
+    print(markdown(summary))
+    print(f"wrote {out / 'rows.csv'}, summary.csv")
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a stored ``rows.csv``, their numbers and success read back."""
+    with open(path, newline="") as handle:
+        return [{**r, "seconds": float(r["seconds"]),
+                 "rotation_error_deg": float(r["rotation_error_deg"]),
+                 "translation_error_m": float(r["translation_error_m"]),
+                 "success": r["success"] == "True"} for r in csv.DictReader(handle)]
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ SCRIPTS = (
     "bench_real.py",
     "bench_report.py",
     "bench_scaling.py",
+    "bench_settings.py",
     "bench_speed.py",
     "bench_stages.py",
     "bench_width.py",
@@ -282,6 +283,26 @@ def test_bench_stages(suites, tmp_path):
     assert [r["group"] for r in rows] == ["full"]
     assert {*GLOBAL_STAGES, "total"} <= rows[0].keys()
     assert table_rows(printed, "full (1)")
+
+
+def test_bench_settings(suites, tmp_path):
+    """Two settings on the full suite's instance: a row per call, a summary whose
+    defaults line compares the defaults with themselves (ratio 1, nothing lost or won),
+    and the same summary again from the stored rows."""
+    printed = run("bench_settings.py", "--suites", suites, "--groups", "full", "--limit", 1,
+                  "--settings", "climbs=2", "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "rows.csv")
+    assert [(r["group"], r["setting"]) for r in rows] == [("full", "defaults"),
+                                                          ("full", "climbs=2")]
+    summary = {(s["setting"], s["kind"]): s for s in read_csv(tmp_path / "summary.csv")}
+    assert set(summary) == {(s, k) for s in ("defaults", "climbs=2") for k in ("views", "all")}
+    defaults = summary["defaults", "all"]
+    assert (float(defaults["time_ratio_median"]), defaults["lost"], defaults["won"]) == (
+        1.0, "0", "0")
+    assert table_rows(printed, "climbs=2")
+    again = tmp_path / "again"
+    run("bench_settings.py", "--from-rows", tmp_path / "rows.csv", "--out", again, cwd=tmp_path)
+    assert read_csv(again / "summary.csv") == read_csv(tmp_path / "summary.csv")
 
 
 def test_bench_width(tmp_path):

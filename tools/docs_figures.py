@@ -434,6 +434,31 @@ def speed_stages() -> str:
     ])
 
 
+def settings() -> str:
+    """What each setting of the global call buys in time and costs in success, per kind of
+    problem, against the defaults on the same instances (``eval/bench_settings.py``)."""
+    rows = read_csv("settings")
+    kinds = list(dict.fromkeys(r["kind"] for r in rows if r["kind"] != "all"))
+    by = {(r["setting"], r["kind"]): r for r in rows}
+    lines = []
+    for setting in dict.fromkeys(r["setting"] for r in rows):
+        every = by[setting, "all"]
+        lines.append([f"`{setting}`", *(f"{float(by[setting, k]['time_ratio_total']):.2f}"
+                                        for k in kinds),
+                      f"{every['right']} of {every['calls']}", every["lost"], every["won"],
+                      f"{float(every['rotation_error_median_deg']):.2f}"])
+    return "\n".join([
+        table(["setting", *(f"time / defaults, {k}" for k in kinds), "right", "lost", "won",
+               "median rotation error of the right, deg"], lines),
+        "",
+        provenance("settings") + " Time: the total seconds of a kind's calls over their "
+        "total at the defaults (a batch's saving; each call's own ratio in "
+        "`docs/data/settings_rows.csv`), one thread, each call timed once (read a ratio "
+        "to within about 10%); right: 5 degrees and 1 cm; lost and won: against the "
+        "defaults.",
+    ])
+
+
 def cores() -> str:
     """What every core gains over one thread, per group, for both methods: the speed
     bench's one-thread medians over its ``--all-cores`` medians."""
@@ -886,6 +911,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "speed": speed,
     "cores": cores,
     "speed-stages": speed_stages,
+    "settings": settings,
     "voxel-trial": voxel_trial,
     "readme-speed": readme_speed,
     "recall": recall,
