@@ -133,12 +133,8 @@ def markdown(summary: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
+    speed.add_task_arguments(parser, limit=6, rotations=1)
     parser.add_argument("--out", type=Path, default=Path("out/bench_settings"))
-    parser.add_argument("--limit", type=int, default=6, help="instances per group at most")
-    parser.add_argument("--rotations", type=int, default=1, help="random rotations per real case")
-    parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
-                        default=list(speed.ALL_GROUPS))
     parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS))
     parser.add_argument("--from-rows", type=Path,
                         help="summarise a stored rows.csv again instead of running")
@@ -148,11 +144,7 @@ def main() -> None:
         report(rows, list(dict.fromkeys(r["setting"] for r in rows)), args.out)
         return
     settings = ["defaults", *(s for s in args.settings if s != "defaults")]
-    groups = [g for g in args.groups if args.suites is not None or g not in speed.SUITE_GROUPS]
-    tasks = [t for g in groups for t in speed.group_tasks(g, args.suites, args.rotations,
-                                                         args.limit)]
-    if not tasks:
-        parser.error("no instances: give --suites or real groups")
+    tasks = speed.chosen_tasks(parser, args, speed.chosen_groups(args))
     rows: list[dict] = []
     for task in speed.tqdm(tasks, desc="bench_settings", unit="inst"):
         call(task, SETTINGS["defaults"])  # untimed: FFT plans, caches, compiled kernels

@@ -296,6 +296,34 @@ def run_task(task: Task, repeats: int) -> list[dict]:
     return rows
 
 
+def add_task_arguments(parser: argparse.ArgumentParser, *, limit: int, rotations: int) -> None:
+    """The options that choose the bench's instances (``--suites``, ``--groups``,
+    ``--limit``, ``--rotations``), with the script's defaults for the last two."""
+    parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
+    parser.add_argument("--groups", nargs="+", choices=ALL_GROUPS, default=list(ALL_GROUPS))
+    parser.add_argument("--limit", type=int, default=limit,
+                        help="at most this many instances per group (a quick run)")
+    parser.add_argument("--rotations", type=int, default=rotations,
+                        help="random rotations per real case")
+
+
+def chosen_groups(args: argparse.Namespace) -> list[str]:
+    """The groups of ``args.groups`` in the bench's order, the suites' only with
+    ``args.suites``."""
+    return [g for g in ALL_GROUPS
+            if g in args.groups and (args.suites is not None or g not in SUITE_GROUPS)]
+
+
+def chosen_tasks(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                 groups: list[str]) -> list[Task]:
+    """The instances of ``groups`` as ``args`` chooses them; a parser error where there
+    are none."""
+    tasks = [t for g in groups for t in group_tasks(g, args.suites, args.rotations, args.limit)]
+    if not tasks:
+        parser.error("no instances: give --suites or real groups")
+    return tasks
+
+
 def summarise(rows: list[dict], groups: list[str]) -> list[dict]:
     out = []
     for group in groups:
@@ -341,12 +369,8 @@ def markdown(summary: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
+    add_task_arguments(parser, limit=10**9, rotations=5)
     parser.add_argument("--out", type=Path, default=Path("out/bench_speed"))
-    parser.add_argument("--rotations", type=int, default=5, help="random rotations per real case")
-    parser.add_argument("--groups", nargs="+", choices=ALL_GROUPS, default=list(ALL_GROUPS))
-    parser.add_argument("--limit", type=int, default=10**9,
-                        help="at most this many instances per group (a quick run)")
     parser.add_argument("--all-cores", action="store_true",
                         help="both methods at their defaults on every core (default: one thread)")
     parser.add_argument("--repeats", type=int, default=3,
@@ -354,15 +378,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error(f"--repeats must be at least 1, got {args.repeats}")
-    groups = [g for g in ALL_GROUPS if g in args.groups]
-    if args.suites is None:
-        groups = [g for g in groups if g not in SUITE_GROUPS]
-
-    tasks: list[Task] = []
-    for group in groups:
-        tasks += group_tasks(group, args.suites, args.rotations, args.limit)
-    if not tasks:
-        parser.error("no instances: give --suites or real groups")
+    groups = chosen_groups(args)
+    tasks = chosen_tasks(parser, args, groups)
     for method in METHODS:  # warm-up, untimed: FFT plans, caches, lazy imports
         CALLS[method](tasks[0])
 

@@ -47,14 +47,10 @@ def staged(task: speed.Task) -> tuple[dict[str, float], bool]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suites", type=Path, help="folder of the four suites (skipped if absent)")
+    speed.add_task_arguments(parser, limit=12, rotations=1)
     parser.add_argument("--out", type=Path, default=Path("out/bench_stages"))
-    parser.add_argument("--limit", type=int, default=12, help="instances per group at most")
-    parser.add_argument("--rotations", type=int, default=1, help="random rotations per real case")
-    parser.add_argument("--groups", nargs="+", choices=speed.ALL_GROUPS,
-                        default=list(speed.ALL_GROUPS))
     args = parser.parse_args()
-    groups = [g for g in args.groups if args.suites is not None or g not in speed.SUITE_GROUPS]
+    groups = speed.chosen_groups(args)
 
     rows, lines, warmed = [], [], False
     for group in groups:
