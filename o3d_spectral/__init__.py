@@ -32,7 +32,6 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
     from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
     from .options import (
         CloudOption,
-        GlobalSearchOption,
         RefinementOption,
         SpectralConvergenceCriteria,
         SpectralRegistrationOption,
@@ -41,6 +40,7 @@ if TYPE_CHECKING:  # the names below, for type checkers; imported on first acces
     from .prepared_target import PreparedTarget, prepare_target
     from .registration import registration_spectral, registration_spectral_global
     from .result import SpectralRegistrationResult
+    from .search_options import GlobalSearchOption
     from .stepper import Evaluation, MovingCloud, SpectralStepper
     from .voxel import suggest_voxel_size
     from .voxel_by_trial import VoxelTrial, voxel_trial
@@ -91,7 +91,7 @@ __getattr__ = lazy_attributes(
         "PreparedSource": "prepared",
         "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",
-        "GlobalSearchOption": "options",
+        "GlobalSearchOption": "search_options",
         "RefinementOption": "options",
         "CloudOption": "options",
         "SpectralConvergenceCriteria": "options",

@@ -18,8 +18,6 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import TypeVar
 
-import open3d as o3d
-
 __all__ = ["resolved_workers", "thread_map", "one_open3d_thread"]
 
 Item = TypeVar("Item")
@@ -93,6 +91,8 @@ def one_open3d_thread() -> Iterator[None]:
     run to run, and a result must repeat exactly. Blocks may overlap across threads (the
     confirmation's polishes run side by side): the limit holds until the last one closes,
     which restores the count the first one found."""
+    import open3d as o3d  # here: the rest of this module serves layers free of Open3D
+
     state = _open3d_threads
     with state.lock:
         if state.open == 0:

@@ -23,7 +23,6 @@ from .law import Climb
 from .opinions import second_opinion, turn_opinion
 from .options import (
     CloudOption,
-    GlobalSearchOption,
     RefinementOption,
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
@@ -33,6 +32,7 @@ from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start
 from .search import GlobalSearch, Ranking
 from .search.confirmation import Confirmation
 from .search.poses import confidence
+from .search_options import GlobalSearchOption
 from .stages import StageClock
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global",

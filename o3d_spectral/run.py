@@ -26,7 +26,6 @@ from .io.units import check_same_units
 from .law import Climb, climb
 from .options import (
     CloudOption,
-    GlobalSearchOption,
     RefinementOption,
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
@@ -37,6 +36,7 @@ from .prepared_target import PreparedTarget
 from .refinement import near_pose, refine, with_normals
 from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
+from .search_options import GlobalSearchOption
 from .stepper import MovingCloud, SpectralStepper
 from .verification import FixedPoints, ambiguity, measure
 

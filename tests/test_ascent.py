@@ -7,7 +7,7 @@ import o3d_spectral
 from o3d_spectral.harness.real import load_cases
 from o3d_spectral.search import Kind, situation
 from o3d_spectral.search.ascent import best_ascent, peak_ascent
-from o3d_spectral.search.candidates import placed_peaks, span_factor
+from o3d_spectral.search.candidates import placed_peaks, span_factor, turned_correlation
 from o3d_spectral.spectra import so3
 
 
@@ -90,7 +90,8 @@ def test_batched_placement_peaks_are_those_of_one_placement_each(scans):
         np.testing.assert_allclose(batched, one_each, rtol=1e-5)
         threaded = placed_peaks(stepper, moving, rotations, factor, workers=3)
         np.testing.assert_array_equal(threaded, batched)  # batches split alike on threads
-        assert len(rotations) > stepper.grid.coarsened(factor).peaks_batch(moving.radius)
+        correlation, _ = turned_correlation(stepper, moving, factor)
+        assert len(rotations) > correlation.backend.batch_size(correlation.shape)
     assert np.argmax(batched) == 0  # the truth places best
 
 

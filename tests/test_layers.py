@@ -5,8 +5,9 @@ and in ``io`` and ``spectra``), ``synthetic`` (the scene generator and the model
 symmetries), then ``harness`` (evaluation) and ``servo`` (visual servoing), which do not
 use each other, and ``cli`` over all of them. A module may import from its own layer and
 the layers below it. Within the core, ``io`` (clouds as given) imports only itself and the
-package's private helpers, and ``spectra`` (the pure maths) only itself, ``io`` and those
-helpers; the method, at the top level, uses both. Read from the source with ``ast``:
+package's helpers, ``spectra`` (the pure maths) only itself, ``io`` and those helpers, and
+``correlation`` (the batched phase correlation, free of Open3D) only itself, ``spectra`` and
+the helpers; the method, at the top level, uses them all. Read from the source with ``ast``:
 nothing is imported.
 
 A private name (one starting with an underscore, not a dunder) is its module's own: no
@@ -40,9 +41,11 @@ ALLOWED = {
 CORE_ALLOWED = {
     "io": {"helpers"},
     "spectra": {"io", "helpers"},
+    "correlation": {"spectra", "helpers"},
 }
-#: The package's private helper modules, which any module may use.
-HELPERS = {"_checks", "_extras", "_lazy", "_bundled"}
+#: The package's helper modules, which any module may use: its private internals, and
+#: ``parallel`` (work on threads).
+HELPERS = {"_checks", "_extras", "_lazy", "_bundled", "parallel"}
 
 
 def module_name(path: Path) -> str:
@@ -58,7 +61,8 @@ def layer(module: str) -> str:
 
 
 def core_part(module: str) -> str:
-    """``io``, ``spectra``, ``helpers`` or ``method`` for a module of the core."""
+    """``io``, ``spectra``, ``correlation``, ``helpers`` or ``method`` for a module of the
+    core."""
     parts = module.split(".")
     if len(parts) > 1 and parts[1] in CORE_ALLOWED:
         return parts[1]
@@ -234,5 +238,6 @@ def test_the_checks_see_what_they_forbid(tmp_path, monkeypatch):
     assert core_part("o3d_spectral._checks") == "helpers"
     assert core_part("o3d_spectral.law") == "method"
     assert "method" not in CORE_ALLOWED["spectra"]  # the maths never use the method
+    assert core_part("o3d_spectral.correlation.batched") == "correlation"
     reaches = list(private_reaches(core))
     assert len(reaches) == 4, reaches

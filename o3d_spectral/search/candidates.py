@@ -22,8 +22,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..options import GlobalSearchOption
-from ..parallel import thread_map
+from ..correlation import Backend, BatchedCorrelation, TurnedCloud
+from ..io.cloud import MIN_POINTS
+from ..search_options import GlobalSearchOption
 from ..spectra import so3
 from ..spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 from ..spectra.so3fft import CorrelationGrid, correlation_grid, peak_indices
@@ -31,8 +32,8 @@ from ..stepper import MovingCloud, SpectralStepper
 
 __all__ = [
     "Candidate", "egi_candidates", "shell_candidates", "swept_candidates", "span_factor",
-    "placed_peaks", "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS", "SWEEP_SENSOR_ANGLE",
-    "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
+    "placed_peaks", "turned_correlation", "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS",
+    "SWEEP_SENSOR_ANGLE", "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
 ]
 
 #: Calibrated constants of the sweep between two scans (dragon scans 48-96 degrees apart).
@@ -168,14 +169,36 @@ def placed_peaks(
     """The phase-correlation peak heights of the moving cloud turned by each rotation
     (3, 3) about its centroid and placed anywhere on a grid of ``factor`` voxels:
     :meth:`o3d_spectral.SpectralStepper.locate`'s for each, batched
-    (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.peaks`), the batches on
-    ``workers`` threads (the same heights whatever the threads)."""
-    grid, rotations = stepper.grid.coarsened(factor), list(rotations)
-    size = grid.peaks_batch(moving.radius)
+    (:func:`turned_correlation`), the batches on ``workers`` threads (the same heights
+    whatever the threads)."""
+    rotations = np.asarray(list(rotations), dtype=np.float64).reshape(-1, 3, 3)
+    if not len(rotations):
+        return np.zeros(0)
+    correlation, cloud = turned_correlation(stepper, moving, factor)
+    return correlation.peaks(cloud, rotations, workers).heights
 
-    def heights(batch: list[NDArray[np.float64]]) -> NDArray[np.float64]:
-        moved = (stepper.visible(moving, R, np.zeros(3))[0] for R in batch)
-        return grid.peaks(moved, moving.radius, moving.centroid)
 
-    batches = [rotations[i : i + size] for i in range(0, len(rotations), size)]
-    return np.concatenate([np.zeros(0), *thread_map(heights, batches, workers)])
+def turned_correlation(
+    stepper: SpectralStepper, moving: MovingCloud, factor: float = 1.0,
+    backend: Backend | None = None,
+) -> tuple[BatchedCorrelation, TurnedCloud]:
+    """The phase correlation of the moving cloud turned about its centroid against the
+    whole fixed grid of ``factor`` voxels, batched over rotations
+    (:class:`o3d_spectral.correlation.BatchedCorrelation`, on ``backend``), and the moving
+    cloud as it turns it: :meth:`o3d_spectral.SpectralStepper.locate`'s peak height for
+    each rotation (to single precision's rounding), culled as
+    :meth:`o3d_spectral.SpectralStepper.visible` culls."""
+    grid = stepper.grid.coarsened(factor)
+    box = grid.moving_box(moving.radius, moving.centroid)
+    correlation = BatchedCorrelation(
+        grid.values, box.shape, shape=grid.fft_shape(grid.box, box, moving.radius),
+        sigma=grid.peak_width, backend=backend,
+    )
+    culled, voxel = stepper.sees(moving), grid.voxel_size
+    cloud = TurnedCloud(
+        (moving.points - moving.centroid) / voxel, (moving.centroid - box.corner) / voxel,
+        normals=moving.point_normals if culled else None,
+        viewpoint=(stepper.viewpoint - box.corner) / voxel if culled else None,
+        two_sided=moving.reading.two_sided, min_facing=MIN_POINTS, weighting=grid.weighting,
+    )
+    return correlation, cloud

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from ..io.cloud import CloudArrays, to_legacy
 from ..law import Climb, climb
-from ..options import GlobalSearchOption
+from ..search_options import GlobalSearchOption
 from ..refinement import thinned, with_normals
 from ..stepper import MovingCloud, SpectralStepper
 from .ascent import best_ascent

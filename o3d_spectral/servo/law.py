@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
+from ..options import CloudOption, SpectralRegistrationOption
 from ..search import situation
 from ..search.ascent import peak_ascent
 from ..search.candidates import egi_candidates
 from ..search.placement import Placements, place
+from ..search_options import GlobalSearchOption
 from ..spectra import so3
 from ..spectra.rotation import gradient
 from ..stepper import Evaluation, MovingCloud, SpectralStepper

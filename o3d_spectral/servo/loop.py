@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ..options import CloudOption, GlobalSearchOption, SpectralRegistrationOption
+from ..options import CloudOption, SpectralRegistrationOption
+from ..search_options import GlobalSearchOption
 from ..spectra import so3
 from .control import camera_twist, joint_velocities, limit_velocities
 from .law import ServoLaw

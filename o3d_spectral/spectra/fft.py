@@ -27,7 +27,6 @@ except ImportError:  # pragma: no cover
 
 __all__ = [
     "RealFFT3", "fft_plan", "next_fast_len", "backend", "padded_forward", "cropped_inverse",
-    "batch_inverse",
 ]
 
 
@@ -149,14 +148,6 @@ def cropped_inverse(
     out = scipy.fft.ifft(spectrum, axis=0)[: size[0]]
     out = scipy.fft.ifft(out, axis=1)[:, : size[1]]
     return scipy.fft.irfft(out, n=shape[2], axis=2)[:, :, : size[2]]
-
-
-def batch_inverse(
-    spectra: NDArray[np.complexfloating], shape: tuple[int, int, int]
-) -> NDArray[np.floating]:
-    """Real grids of ``shape`` from a stack of half spectra (B, nx, ny, nz // 2 + 1), in
-    one call of pocketfft over the last three axes."""
-    return scipy.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1))
 
 
 #: Plans kept per thread (the least recently used beyond this are dropped).

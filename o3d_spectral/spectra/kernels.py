@@ -15,7 +15,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["compile_all", "harmonic_sums", "splat_into", "HARMONIC_BLOCK"]
+__all__ = [
+    "compile_all", "harmonic_sums", "splat_into", "turned_splat_into", "whitened_into",
+    "HARMONIC_BLOCK",
+]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -161,6 +164,122 @@ def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
                         grid[x, y, z] += w
 
 
+@numba.njit(cache=True, nogil=True)
+def turned_splat_into(
+    grid: NDArray, points: NDArray, rotation: NDArray, offset: NDArray, normals: NDArray,
+    viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int, trilinear: bool,
+    binary: bool,
+) -> None:
+    """Turn points about a pivot and add each to ``grid`` as :func:`splat_into` does, in
+    one pass with no temporaries: the point ``p`` (voxels, about the pivot) lands at
+    ``u = R p + offset``, continuous voxel coordinates of ``grid``.
+
+    With ``culled``, only the points whose turned normal ``R n`` faces ``viewpoint``
+    (``R n . (viewpoint - u) > 0``; any non-zero cosine when ``two_sided``) are added,
+    unless fewer than ``min_facing`` do, when every point is
+    (:meth:`o3d_spectral.SpectralStepper.visible`).
+
+    Parameters
+    ----------
+    grid : ndarray, shape (X, Y, Z)
+        Filled in place (zeroed by the caller); points (corners) outside it are dropped.
+    points, normals : ndarray, shape (N, 3)
+        Voxels about the pivot; unit normals (read only when ``culled``).
+    rotation : ndarray, shape (3, 3)
+    offset, viewpoint : ndarray, shape (3,)
+        The pivot and the sensor in the grid's voxel coordinates.
+    culled, two_sided : bool
+    min_facing : int
+    trilinear, binary : bool
+        As for :func:`splat_into`.
+    """
+    R = rotation
+    n = points.shape[0]
+    facing = np.ones(n, dtype=np.bool_)
+    if culled:
+        count = 0
+        for i in range(n):
+            p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
+            n0, n1, n2 = normals[i, 0], normals[i, 1], normals[i, 2]
+            cosine = 0.0
+            for a in range(3):
+                turned = R[a, 0] * n0 + R[a, 1] * n1 + R[a, 2] * n2
+                at = R[a, 0] * p0 + R[a, 1] * p1 + R[a, 2] * p2 + offset[a]
+                cosine += turned * (viewpoint[a] - at)
+            facing[i] = cosine != 0.0 if two_sided else cosine > 0.0
+            count += facing[i]
+        if count < min_facing:
+            facing[:] = True
+    nx, ny, nz = grid.shape
+    half = 0.5 if trilinear else 0.0
+    corners = 2 if trilinear else 1
+    for i in range(n):
+        if not facing[i]:
+            continue
+        p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
+        fx = R[0, 0] * p0 + R[0, 1] * p1 + R[0, 2] * p2 + offset[0] - half
+        fy = R[1, 0] * p0 + R[1, 1] * p1 + R[1, 2] * p2 + offset[1] - half
+        fz = R[2, 0] * p0 + R[2, 1] * p1 + R[2, 2] * p2 + offset[2] - half
+        bx, by, bz = int(np.floor(fx)), int(np.floor(fy)), int(np.floor(fz))
+        ax, ay, az = fx - bx, fy - by, fz - bz
+        for cx in range(corners):
+            x = bx + cx
+            if x < 0 or x >= nx:
+                continue
+            wx = (ax if cx else 1.0 - ax) if trilinear else 1.0
+            for cy in range(corners):
+                y = by + cy
+                if y < 0 or y >= ny:
+                    continue
+                wy = (ay if cy else 1.0 - ay) if trilinear else 1.0
+                for cz in range(corners):
+                    z = bz + cz
+                    if z < 0 or z >= nz:
+                        continue
+                    w = wx * wy * ((az if cz else 1.0 - az) if trilinear else 1.0)
+                    if binary:
+                        if w != 0.0:
+                            grid[x, y, z] = 1.0
+                    else:
+                        grid[x, y, z] += w
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def whitened_into(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) -> None:
+    """``out = window G conj(F) / max(|G conj(F)|, eps |G_0 F_0|)``: the windowed,
+    normalised cross-power spectrum of two spectra of non-negative grids
+    (eq. cross_power_spectrum), in one pass.
+
+    For a non-negative grid no frequency's magnitude exceeds the sum of its values, the
+    zero frequency's ``F_0``: ``|G_0 F_0|`` is the largest cross-power term, the one the
+    terms under ``eps`` of it are measured against
+    (:func:`o3d_spectral.spectra.translation.cross_power_peak`).
+
+    Parameters
+    ----------
+    F, G, out : ndarray, shape (..., 2)
+        The moving and fixed half spectra and the result as the real and imaginary
+        parts of each term (a complex array's ``view`` as reals, reshaped), one shape,
+        C-contiguous; ``out`` may be ``F``.
+    window : ndarray
+        One real weight per term, of the spectra's precision.
+    eps : float
+        Of the spectra's precision.
+    """
+    f, g = F.reshape(-1, 2), G.reshape(-1, 2)
+    w, o = window.ravel(), out.reshape(-1, 2)
+    top2 = (f[0, 0] * f[0, 0] + f[0, 1] * f[0, 1]) * (g[0, 0] * g[0, 0] + g[0, 1] * g[0, 1])
+    floor2 = eps * eps * top2
+    if not floor2 > 0:
+        floor2 = eps * eps
+    for i in range(w.size):
+        re = g[i, 0] * f[i, 0] + g[i, 1] * f[i, 1]  # g conj(f)
+        im = g[i, 1] * f[i, 0] - g[i, 0] * f[i, 1]
+        scale = w[i] / np.sqrt(max(re * re + im * im, floor2))
+        o[i, 0] = re * scale
+        o[i, 1] = im * scale
+
+
 def compile_all() -> None:
     """Compile (or load from the cache) every kernel for the argument types the package
     passes: C-contiguous float64 arrays, each combination of the flags."""
@@ -169,6 +288,15 @@ def compile_all() -> None:
         for binary in (False, True):
             splat_into(grid, u, weights, trilinear, binary)
     harmonic_sums(np.array([[0.0, 0.0, 1.0]]), weights, 2)
+    eye, origin, normals = np.eye(3), np.zeros(3), np.zeros((1, 3))
+    cells = np.zeros((2, 2, 2), dtype=np.float32)  # the batched correlation's grids
+    for culled in (False, True):
+        for trilinear in (False, True):
+            for binary in (False, True):
+                turned_splat_into(cells, u, eye, origin, normals, origin, culled, False, 0,
+                                  trilinear, binary)
+    spectrum = np.ones((2, 2, 2), dtype=np.complex64).view(np.float32)
+    whitened_into(spectrum, spectrum, cells, np.float32(1e-6), spectrum.copy())
 
 
 if __name__ == "__main__":

@@ -14,18 +14,16 @@ and only the shifts that keep the moving grid inside the block are read.
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterable
 from dataclasses import dataclass
-from itertools import islice
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..io.cloud import extent
 from ..io.rows import bounds
-from .fft import RealFFT3, fft_plan, next_fast_len, padded_forward
+from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
-from .translation import cross_power_peak, peak_heights
+from .translation import cross_power_peak
 
 __all__ = ["Placement", "TargetGrid"]
 
@@ -40,9 +38,6 @@ SCENE_RATIO = 1.5
 #: Voxel of the grid candidates are first placed on between two views, in voxels (an
 #: eighth of the FFT; :meth:`TargetGrid.coarsened`).
 COARSE_FACTOR = 2.0
-#: Bytes of moving grids transformed together by :meth:`TargetGrid.peaks` (their spectra
-#: and correlations take about as much again each).
-BATCH_BYTES = 2**20
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
 #: does not need more.
 PRECISION = "single"
@@ -104,6 +99,13 @@ class TargetGrid:
         self._spectra: dict[tuple, NDArray[np.complexfloating]] = {}
         self._coarsened: dict[float, TargetGrid] = {}
         self._lock = threading.Lock()  # the caches are shared by the threads using this grid
+
+    @property
+    def values(self) -> NDArray[np.float64]:
+        """The fixed cloud's unit-norm grid on :attr:`box` (read only)."""
+        view = self._grid.view()
+        view.flags.writeable = False
+        return view
 
     def coarsened(self, factor: float) -> TargetGrid:
         """The same fixed cloud on a grid of ``factor`` voxels, no window, built on first
@@ -200,41 +202,6 @@ class TargetGrid:
         )
         shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
         return Placement(shift, peak.peak, self._cost(grid, box))
-
-    def peaks(
-        self, moved: Iterable[NDArray[np.float64]], radius: float, centre: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """Phase-correlation peak heights of many point sets of one moving cloud (its
-        points turned about its centroid ``centre``, radius ``radius``, metres) against
-        the whole fixed grid: :meth:`correlate`'s ``peak`` for each (to rounding), with
-        the grids transformed in batches of :data:`BATCH_BYTES`. For ranking many
-        rotations (:func:`o3d_spectral.search.candidates.swept_candidates`), where one
-        correlation each would spend more time in Python than in its small FFTs.
-
-        Returns
-        -------
-        ndarray, shape (B,)
-        """
-        box = self.moving_box(radius, centre)
-        fft, spectrum = self._fft(self.box, box, radius)
-        batch = self.peaks_batch(radius)
-        sets, heights = iter(moved), []
-        while chunk := list(islice(sets, batch)):
-            grids = np.empty((len(chunk), *box.shape), dtype=fft.dtype)
-            for grid, points in zip(grids, chunk, strict=True):
-                self._unit_grid(points, box, grid)
-            F = padded_forward(grids, fft.shape)
-            heights.append(peak_heights(F, spectrum, fft.shape, sigma=self.peak_width))
-        return np.concatenate(heights) if heights else np.zeros(0)
-
-    def peaks_batch(self, radius: float) -> int:
-        """How many moving grids (of a cloud of ``radius`` metres) :meth:`peaks` transforms
-        together: :data:`BATCH_BYTES` of them. A caller spreading many sets over threads
-        splits them at these counts, so that each batch, and its result, is the same
-        whatever the threads."""
-        shape = self.fft_shape(self.box, self.moving_box(radius, np.zeros(3)), radius)
-        itemsize = fft_plan(shape, precision=PRECISION).dtype.itemsize
-        return max(1, BATCH_BYTES // (itemsize * int(np.prod(shape))))
 
     def _unit_grid(
         self, moved: NDArray[np.float64], box: Box, out: NDArray[np.floating]

@@ -20,10 +20,10 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .fft import RealFFT3, batch_inverse
+from .fft import RealFFT3
 
 __all__ = [
-    "PeakEstimate", "gaussian_window", "phase_correlation", "cross_power_peak", "peak_heights",
+    "PeakEstimate", "gaussian_window", "peak_scale", "phase_correlation", "cross_power_peak",
 ]
 
 
@@ -77,13 +77,16 @@ def gaussian_window(
 
 
 @lru_cache(maxsize=8)
-def _full_window_sum(shape: tuple[int, int, int], sigma: float, dtype: type) -> float:
-    """Sum of :func:`gaussian_window` over the full spectrum (both halves), float64."""
+def peak_scale(shape: tuple[int, int, int], sigma: float, dtype: type = np.float64) -> float:
+    """The factor that makes a windowed phase correlation's value a peak height in [0, 1]:
+    the grid's size over the sum of :func:`gaussian_window` (of ``dtype``) over the full
+    spectrum (both halves), the value a perfect match reaches being that sum over the
+    size."""
     window = gaussian_window(shape, sigma, dtype)
     total = 2.0 * window.sum(dtype=np.float64) - window[..., 0].sum(dtype=np.float64)
     if shape[2] % 2 == 0:
         total -= window[..., -1].sum(dtype=np.float64)
-    return float(total)
+    return float(np.prod(shape)) / float(total)
 
 
 def _subvoxel(
@@ -167,33 +170,6 @@ def cross_power_peak(
     return PeakEstimate(integer + _subvoxel(delta, index, bounds), peak)
 
 
-def peak_heights(
-    F: NDArray[np.complexfloating], G: NDArray[np.complexfloating],
-    shape: tuple[int, int, int], *, sigma: float = 1.0, eps: float = 1e-6,
-) -> NDArray[np.float64]:
-    """Heights of the phase-correlation peaks of a stack of moving grids' spectra against
-    one fixed spectrum: :func:`cross_power_peak`'s ``peak`` for each, read over the
-    whole grid, without the shift (ranking many rotations needs the heights only).
-
-    Parameters
-    ----------
-    F : ndarray, shape (B, nx, ny, nz // 2 + 1)
-        Half spectra of the moving grids.
-    G : ndarray, shape (nx, ny, nz // 2 + 1)
-        Half spectrum of the fixed grid.
-    shape : tuple of 3 int
-        Real-space grid shape ``(nx, ny, nz)``.
-    sigma, eps : float
-        As for :func:`cross_power_peak`.
-
-    Returns
-    -------
-    ndarray, shape (B,)
-    """
-    delta = batch_inverse(_whitened(F, G, shape, sigma, eps), shape)
-    return _peak_height(delta.reshape(len(delta), -1).max(axis=1), shape, sigma)
-
-
 def _whitened(
     F: NDArray[np.complexfloating], G: NDArray[np.complexfloating],
     shape: tuple[int, int, int], sigma: float, eps: float,
@@ -216,8 +192,7 @@ def _peak_height(
 ) -> NDArray[np.float64]:
     """Correlation values as peak heights in [0, 1]: a perfect match's value is the
     window's sum over the full spectrum over the grid size."""
-    scale = _full_window_sum(shape, sigma, values.dtype.type)
-    return np.asarray(values, dtype=np.float64) * float(np.prod(shape)) / scale
+    return np.asarray(values, dtype=np.float64) * peak_scale(shape, sigma, values.dtype.type)
 
 
 def phase_correlation(
