@@ -129,6 +129,7 @@ class Cramped(CompiledBackend):
     """A backend whose memory holds ``room`` grids at most."""
 
     def __init__(self, room: int) -> None:
+        super().__init__()
         self.room = room
 
     def batch_size(self, shape):

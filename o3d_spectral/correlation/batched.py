@@ -111,8 +111,7 @@ class BatchedCorrelation:
         try:
             self.window = self.backend.asarray(gaussian_window(self.shape, sigma, np.float32),
                                                xp.float32)
-            self.spectrum = self.backend.forward(self.backend.asarray(fixed[None], xp.float32),
-                                                 self.shape)[0]
+            self.spectrum = self.backend.spectrum(fixed, self.shape)
         except MemoryError as error:
             raise self._too_large() from error
 

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    "compile_all", "harmonic_sums", "splat_into", "turned_splat_into", "whitened_into",
-    "HARMONIC_BLOCK",
+    "compile_all", "harmonic_sums", "splat_into", "turned_splat_into", "whitened",
+    "whitened_into", "HARMONIC_BLOCK",
 ]
 
 
@@ -166,13 +166,14 @@ def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
 
 @numba.njit(cache=True, nogil=True)
 def turned_splat_into(
-    grid: NDArray, points: NDArray, rotation: NDArray, offset: NDArray, normals: NDArray,
+    grids: NDArray, points: NDArray, rotations: NDArray, offset: NDArray, normals: NDArray,
     viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int, trilinear: bool,
     binary: bool,
 ) -> None:
-    """Turn points about a pivot and add each to ``grid`` as :func:`splat_into` does, in
-    one pass with no temporaries: the point ``p`` (voxels, about the pivot) lands at
-    ``u = R p + offset``, continuous voxel coordinates of ``grid``.
+    """Turn points about a pivot by each of a stack of rotations and add them to the
+    matching grid of a stack as :func:`splat_into` does, in one pass with no
+    temporaries: for rotation ``R`` the point ``p`` (voxels, about the pivot) lands at
+    ``u = R p + offset``, continuous voxel coordinates of its grid.
 
     With ``culled``, only the points whose turned normal ``R n`` faces ``viewpoint``
     (``R n . (viewpoint - u) > 0``; any non-zero cosine when ``two_sided``) are added,
@@ -181,11 +182,11 @@ def turned_splat_into(
 
     Parameters
     ----------
-    grid : ndarray, shape (X, Y, Z)
-        Filled in place (zeroed by the caller); points (corners) outside it are dropped.
+    grids : ndarray, shape (B, X, Y, Z)
+        Filled in place (zeroed by the caller); points (corners) outside are dropped.
     points, normals : ndarray, shape (N, 3)
         Voxels about the pivot; unit normals (read only when ``culled``).
-    rotation : ndarray, shape (3, 3)
+    rotations : ndarray, shape (B, 3, 3)
     offset, viewpoint : ndarray, shape (3,)
         The pivot and the sensor in the grid's voxel coordinates.
     culled, two_sided : bool
@@ -193,7 +194,18 @@ def turned_splat_into(
     trilinear, binary : bool
         As for :func:`splat_into`.
     """
-    R = rotation
+    for b in range(rotations.shape[0]):
+        _turned_splat(grids[b], points, rotations[b], offset, normals, viewpoint, culled,
+                      two_sided, min_facing, trilinear, binary)
+
+
+@numba.njit(cache=True, nogil=True)
+def _turned_splat(
+    grid: NDArray, points: NDArray, R: NDArray, offset: NDArray, normals: NDArray,
+    viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int, trilinear: bool,
+    binary: bool,
+) -> None:
+    """:func:`turned_splat_into` for one grid and one rotation ``R``."""
     n = points.shape[0]
     facing = np.ones(n, dtype=np.bool_)
     if culled:
@@ -244,8 +256,16 @@ def turned_splat_into(
                         grid[x, y, z] += w
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
+@numba.njit(cache=True, nogil=True)
 def whitened_into(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) -> None:
+    """:func:`whitened` of each of a stack of spectra ``F`` (B, ..., 2) into ``out``
+    (the same shape; may be ``F``)."""
+    for b in range(F.shape[0]):
+        whitened(F[b], G, window, eps, out[b])
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def whitened(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) -> None:
     """``out = window G conj(F) / max(|G conj(F)|, eps |G_0 F_0|)``: the windowed,
     normalised cross-power spectrum of two spectra of non-negative grids
     (eq. cross_power_spectrum), in one pass.
@@ -289,14 +309,14 @@ def compile_all() -> None:
             splat_into(grid, u, weights, trilinear, binary)
     harmonic_sums(np.array([[0.0, 0.0, 1.0]]), weights, 2)
     eye, origin, normals = np.eye(3), np.zeros(3), np.zeros((1, 3))
-    cells = np.zeros((2, 2, 2), dtype=np.float32)  # the batched correlation's grids
+    cells = np.zeros((1, 2, 2, 2), dtype=np.float32)  # the batched correlation's grids
     for culled in (False, True):
         for trilinear in (False, True):
             for binary in (False, True):
-                turned_splat_into(cells, u, eye, origin, normals, origin, culled, False, 0,
-                                  trilinear, binary)
-    spectrum = np.ones((2, 2, 2), dtype=np.complex64).view(np.float32)
-    whitened_into(spectrum, spectrum, cells, np.float32(1e-6), spectrum.copy())
+                turned_splat_into(cells, u, eye[None], origin, normals, origin, culled, False,
+                                  0, trilinear, binary)
+    spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
+    whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
 
 
 if __name__ == "__main__":
