@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._checks import check_bool, check_int
+from ._checks import check_bool, check_choice, check_int
 from .options import SpectralRegistrationOption
 
 __all__ = ["GlobalSearchOption"]
@@ -62,6 +62,19 @@ class GlobalSearchOption:
         Between two single views: rotations spread evenly over SO(3), >= 0 (those that
         keep the two sensors within 110 degrees are tried), placed on a coarse grid, the
         best 16 kept as more candidates; 0 tries none.
+    rotations : {"adaptive", "dense"}, default "adaptive"
+        How SO(3) is swept where the first candidates are not confirmed. ``"adaptive"``:
+        between two single views, ``sweep_rotations`` rotations ranked on a coarse grid;
+        in no other case. ``"dense"``: between two single views and for an object
+        against a view or model of it (not in a scene), ``dense_rotations`` even
+        rotations ranked coarse to fine up to the voxel's own grid and the best refined
+        there (:mod:`o3d_spectral.search.dense`): more calls right where the clouds
+        share little of their normals (scans far apart), at seconds a call on a few
+        cores.
+    dense_rotations : int, default 4608
+        With ``rotations="dense"``: the even rotations sampled, >= 1 (4608: every
+        rotation within about 13 degrees of one, 7 at the median; the peak the search
+        ranks by falls to half about 10 degrees from the truth). Time grows with it.
     confirm : bool, default True
         Polish the best placed hypothesis by a short point-to-plane ICP and, where its
         fit shows it clearly right, return it without the climbs (not in a scene), so
@@ -112,6 +125,8 @@ class GlobalSearchOption:
     search_samples: int | None = None
     shell_hypotheses: int = 32
     sweep_rotations: int = 1000
+    rotations: str = "adaptive"
+    dense_rotations: int = 4608
     confirm: bool = True
     peak_ascent: bool = True
     coarse_placements: int = 16
@@ -124,6 +139,8 @@ class GlobalSearchOption:
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
+        check_choice("rotations", self.rotations, ("adaptive", "dense"))
+        check_int("dense_rotations", self.dense_rotations, low=1)
         check_int("second_opinions", self.second_opinions, low=0)
         check_int("turns", self.turns, low=0)
         check_int("climbs", self.climbs, low=1, high=self.hypotheses, high_name="hypotheses")

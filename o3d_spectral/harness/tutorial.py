@@ -133,9 +133,13 @@ def with_target_normals(
     return target
 
 
-def ransac_matcher(voxel_size: float):
+def ransac_matcher(
+    voxel_size: float, *, max_iteration: int = RANSAC["max_iteration"],
+    confidence: float = RANSAC["confidence"],
+):
     """The tutorial's RANSAC on FPFH matches (:data:`RANSAC`), as a ``match`` for
-    :func:`global_then_refine`."""
+    :func:`global_then_refine`; stopped at ``max_iteration`` iterations or
+    ``confidence`` (the tutorial's when omitted)."""
     distance = RANSAC["max_correspondence_distance_voxels"] * voxel_size
     checkers = [
         _reg.CorrespondenceCheckerBasedOnEdgeLength(RANSAC["edge_length_checker"]),
@@ -153,7 +157,7 @@ def ransac_matcher(voxel_size: float):
             _reg.TransformationEstimationPointToPoint(RANSAC["with_scaling"]),
             RANSAC["ransac_n"],
             checkers,
-            _reg.RANSACConvergenceCriteria(RANSAC["max_iteration"], RANSAC["confidence"]),
+            _reg.RANSACConvergenceCriteria(max_iteration, confidence),
         )
 
     return ransac

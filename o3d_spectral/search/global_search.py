@@ -36,13 +36,14 @@ from numpy.typing import NDArray
 
 from ..io.cloud import CloudArrays, to_legacy
 from ..law import Climb, climb
-from ..search_options import GlobalSearchOption
 from ..refinement import thinned, with_normals
+from ..search_options import GlobalSearchOption
 from ..stepper import MovingCloud, SpectralStepper
 from .ascent import best_ascent
 from .candidates import Candidate, egi_candidates, shell_candidates, swept_candidates
 from .climbs import FOCUS_MARGIN, climbed
 from .confirmation import FIXED_CELL, Confirmation, Fit, closer, confirm, fit
+from .dense import dense_candidates
 from .placement import Hypothesis, Placements, best_first, place, places
 from .poses import distinct
 from .situation import Situation
@@ -104,8 +105,11 @@ class GlobalSearch:
 
     @property
     def sweeps(self) -> bool:
-        """Whether :meth:`rank` with ``sweep=True`` adds a sweep of SO(3): two scans, and
+        """Whether :meth:`rank` with ``sweep=True`` adds a sweep of SO(3): the dense
+        search outside a scene (``option.rotations == "dense"``); otherwise two scans, and
         ``option.sweep_rotations`` over 0."""
+        if self.option.rotations == "dense":
+            return not self.situation.scene
         return self.situation.two_scans and self.option.sweep_rotations > 0
 
     @property
@@ -138,13 +142,21 @@ class GlobalSearch:
                 candidates += shell_candidates(stepper.target_points, moving.points,
                                                option.shell_hypotheses)
             self.state.candidates = candidates
-        candidates = list(self.state.candidates)
-        if sweep and self.sweeps:
+        candidates, ranked_already = list(self.state.candidates), []
+        if sweep and self.sweeps and option.rotations == "dense":
+            ranked_already = dense_candidates(stepper, moving, option.dense_rotations,
+                                              two_scans=self.situation.two_scans,
+                                              workers=option.workers)
+        elif sweep and self.sweeps:
             candidates += swept_candidates(stepper, moving, option.sweep_rotations,
                                            option.workers)
         ranked = place(stepper, moving, candidates, self.state.placements,
                        two_scans=self.situation.two_scans,
                        coarse_placements=option.coarse_placements, workers=option.workers)
+        if ranked_already:  # ranked on the placement's grid: placed, none left out
+            ranked = best_first(ranked + place(
+                stepper, moving, ranked_already, self.state.placements,
+                two_scans=self.situation.two_scans, workers=option.workers))
         if not option.egi_focus:
             return Ranking(ranked, False)
         return self._focused(ranked)

@@ -23,7 +23,8 @@ from ..spectra.target_grid import COARSE_FACTOR
 from ..stepper import MovingCloud, SpectralStepper
 from .candidates import Candidate, placed_peaks, span_factor
 
-__all__ = ["Hypothesis", "Placements", "place", "best_first", "places", "PLACEMENT_SPAN"]
+__all__ = ["Hypothesis", "Placements", "place", "placement_factor", "best_first", "places",
+           "PLACEMENT_SPAN"]
 
 #: Between two scans, candidates are placed on a grid where the moving cloud spans at most
 #: this many cells: the voxel itself for the dragon scans (44-54 voxels across) and the
@@ -103,9 +104,9 @@ def place(
     is added to it. Placed on ``workers`` threads (:func:`o3d_spectral.parallel.thread_map`).
     """
     factor = 1.0
-    if around is None and two_scans:
-        factor = span_factor(stepper.voxel_size, moving.radius, PLACEMENT_SPAN)
-        if 0 < coarse_placements < len(candidates):
+    if around is None:
+        factor = placement_factor(stepper.voxel_size, moving.radius, two_scans=two_scans)
+        if two_scans and 0 < coarse_placements < len(candidates):
             candidates = _coarse_best(stepper, moving, candidates, placements,
                                       COARSE_FACTOR * factor, coarse_placements, workers)
 
@@ -125,6 +126,13 @@ def place(
     for candidate, hypothesis in zip(new, thread_map(placed, new, workers), strict=True):
         placements.placed[key_of(candidate)] = hypothesis
     return best_first([placements.placed[key_of(c)] for c in candidates])
+
+
+def placement_factor(voxel_size: float, radius: float, *, two_scans: bool) -> float:
+    """The grid (voxels) on which :func:`place` places candidates anywhere for a moving
+    cloud of ``radius`` (metres): between ``two_scans``, one where it spans at most
+    :data:`PLACEMENT_SPAN` cells; the voxel itself otherwise."""
+    return span_factor(voxel_size, radius, PLACEMENT_SPAN) if two_scans else 1.0
 
 
 def _coarse_best(

@@ -1,0 +1,88 @@
+"""The dense search: even rotations ranked coarse to fine, the best refined by a compass."""
+
+import numpy as np
+import pytest
+
+import o3d_spectral
+from o3d_spectral.correlation import BatchedCorrelation, TurnedCloud
+from o3d_spectral.harness.real import (
+    case_errors,
+    is_success,
+    load_cases,
+    randomly_rotated,
+    rotation_seed,
+)
+from o3d_spectral.search.candidates import SWEEP_SENSOR_ANGLE
+from o3d_spectral.search.dense import compass, dense_candidates, dense_rotations
+from o3d_spectral.search.situation import Kind, situation
+from o3d_spectral.spectra import so3
+
+
+@pytest.fixture(scope="module")
+def far_scans():
+    """Dragon scans 0 and 120 degrees apart, the source at the bench's first random
+    rotation: the adaptive search ends 21 degrees off."""
+    scans = next(c for c in load_cases(["dragon_120"]) if c.name == "dragon_0_120")
+    case, _ = randomly_rotated(scans, seed=rotation_seed(scans.name, 0))
+    return case
+
+
+def test_two_scans_sweep_only_rotations_that_keep_the_sensors_apart_by_at_most_the_limit(
+    far_scans,
+):
+    stepper = o3d_spectral.SpectralStepper(far_scans.target, 0.005)
+    moving = stepper.moving(far_scans.source)
+    assert situation(stepper, moving).kind is Kind.TWO_SCANS
+    index, rotations = dense_rotations(stepper, moving, 500, two_scans=True)
+    np.testing.assert_array_equal(rotations, so3.uniform_rotations(500)[index])
+    toward = rotations @ moving.reading.view @ stepper.target_reading.view
+    assert np.all(toward >= np.cos(SWEEP_SENSOR_ANGLE)) and 300 < len(index) < 500
+    every, _ = dense_rotations(stepper, moving, 500, two_scans=False)
+    np.testing.assert_array_equal(every, np.arange(500))
+
+
+def test_the_compass_climbs_to_the_truth_from_a_few_degrees_off(rng):
+    points = rng.normal(size=(600, 3)) * [4.0, 2.5, 1.5]
+    cloud = TurnedCloud(points, [10.0, 10.0, 10.0])
+    correlation = BatchedCorrelation(BatchedCorrelation.grid_of(cloud, (20, 20, 20)),
+                                     (20, 20, 20))
+    starts = np.stack([so3.exp([0.08, -0.05, 0.06]), so3.exp([-0.1, 0.0, 0.04])])
+    heights = correlation.peaks(cloud, starts).heights
+    turned, peaks = compass(correlation, cloud, starts, heights,
+                            first_step=np.deg2rad(4.0), workers=2)
+    assert np.all(peaks >= heights) and np.all(peaks > 0.95)
+    for R in turned:
+        assert np.rad2deg(so3.rotation_angle(R)) < 1.5
+
+
+@pytest.mark.slow
+def test_the_first_dense_candidate_is_the_truth_where_the_adaptive_search_misses(far_scans):
+    stepper = o3d_spectral.SpectralStepper(far_scans.target, 0.005)
+    moving = stepper.moving(far_scans.source)
+    found = dense_candidates(stepper, moving, 4608, two_scans=True, workers=2)
+    assert found[0].key[-1] == "refined"
+    assert [c.value for c in found] == sorted((c.value for c in found), reverse=True)
+    error = so3.rotation_angle(found[0].rotation.T @ far_scans.T_gt[:3, :3])
+    assert np.rad2deg(error) < 5.0
+
+
+@pytest.mark.slow
+def test_the_dense_search_registers_scans_120_degrees_apart(far_scans):
+    def registered(rotations: str) -> bool:
+        search = o3d_spectral.GlobalSearchOption(rotations=rotations)
+        result = o3d_spectral.registration_spectral_global(
+            far_scans.source, far_scans.target, 0.005, search=search)
+        assert "sweep" in result.stage_times
+        return is_success(*case_errors(np.asarray(result.transformation), far_scans))
+
+    assert registered("dense") and not registered("adaptive")
+
+
+@pytest.mark.parametrize("field, value, error", [
+    ("rotations", "fast", ValueError), ("rotations", None, ValueError),
+    ("dense_rotations", 0, ValueError), ("dense_rotations", -5, ValueError),
+    ("dense_rotations", 2.5, TypeError), ("dense_rotations", True, TypeError),
+])
+def test_the_dense_settings_are_checked(field, value, error):
+    with pytest.raises(error, match=field):
+        o3d_spectral.GlobalSearchOption(**{field: value})
