@@ -93,14 +93,15 @@ def peak_ascent(
 
 def best_ascent(
     stepper: SpectralStepper, moving: MovingCloud, poses: list[NDArray[np.float64]],
-    workers: int | None = 1,
+    workers: int | None = 1, preselect_span: float = PRESELECT_SPAN,
 ) -> Hypothesis:
     """:func:`peak_ascent` from the most promising of several poses (4, 4): each is first
-    ascended on a coarse grid (:data:`PRESELECT_SPAN`, :data:`PRESELECT_STEPS`; the poses
-    side by side on ``workers`` threads), and the one that peaks highest there is ascended
-    on with the finer steps of :data:`ASCENT_STEPS` only, coarse to fine (its large turns
-    are the preselection's: on the dragon and turntable pairs the same poses to 0.07
-    degree, the ascent 13% shorter). A single pose is ascended with every step.
+    ascended with :data:`PRESELECT_STEPS` on a grid where the moving cloud spans at most
+    ``preselect_span`` cells (the poses side by side on ``workers`` threads), and the one
+    that peaks highest there is ascended on with the finer steps of :data:`ASCENT_STEPS`
+    only, coarse to fine (its large turns are the preselection's: on the dragon and
+    turntable pairs the same poses to 0.07 degree, the ascent 13% shorter). A single pose
+    is ascended with every step.
 
     Between two scans the law's climbs end 5-20 degrees from where the shapes agree best,
     and the climb that ends best-scored is not always the one nearest the truth: on dragon
@@ -111,7 +112,7 @@ def best_ascent(
     if len(poses) == 1:
         return peak_ascent(stepper, moving, poses[0])
     coarse = thread_map(
-        lambda pose: peak_ascent(stepper, moving, pose, PRESELECT_STEPS, PRESELECT_SPAN),
+        lambda pose: peak_ascent(stepper, moving, pose, PRESELECT_STEPS, preselect_span),
         poses, workers,
     )
     best = max(coarse, key=lambda h: h.translation_peak)  # the first of equals
