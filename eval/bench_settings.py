@@ -55,6 +55,8 @@ SETTINGS: dict[str, Setting] = {
     "refinement=None": (1.0, {**_search(), "refinement": None}),
     "RefinementOption(wide_distance=None)": (
         1.0, {**_search(), "refinement": RefinementOption(wide_distance=None)}),
+    "RefinementOption(cell=0.5)": (
+        1.0, {**_search(), "refinement": RefinementOption(cell=0.5)}),
     "hypotheses=16": (1.0, _search(hypotheses=16)),
     "climbs=2": (1.0, _search(climbs=2)),
     "shell_hypotheses=0": (1.0, _search(shell_hypotheses=0)),

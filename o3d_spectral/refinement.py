@@ -172,9 +172,11 @@ def refine(
     ``init`` at ``option.distance``: from a wrong pose with few correspondences on a thin
     or flat part, the ICP's normal equations are nearly singular and it can leave the
     surface altogether (a scissors view sent 90 m away), which no refinement should do.
-    ``target`` must have normals.
+    ``target`` must have normals. With ``option.cell``, both clouds are read one point per
+    cube of that many voxels (:func:`thinned`) throughout.
     """
-
+    if option.cell is not None:  # the polish's resolution
+        source, target = (thinned(c, option.cell * voxel_size) for c in (source, target))
     sparse = source.voxel_down_sample(voxel_size)  # one point per voxel
     points, tree = np.asarray(sparse.points), cKDTree(np.asarray(target.points))
 

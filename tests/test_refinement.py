@@ -91,3 +91,25 @@ def test_the_whole_source_is_polished_once_the_cuts_are_spent(scans, monkeypatch
     reached = calls[-1][1]  # the first cut's pose, beyond reach of the start
     assert moves_beyond_reach(source, start, reached)
     np.testing.assert_array_equal(cut, point_to_plane_icp(source, target, DISTANCE, reached))
+
+
+def test_a_polish_at_half_the_voxel_reads_fewer_points_and_lands_near_the_whole_one(
+    scans, monkeypatch
+):
+    """``RefinementOption(cell=0.5)``: both clouds one point per half-voxel cube, as the
+    lean FPFH-RANSAC polishes; from a start 2 degrees off, the pose as near the recorded
+    truth as the full polish's (0.44 and 0.50 degrees), within a millimetre of it."""
+    from o3d_spectral import RefinementOption
+
+    source, target, truth = scans
+    start = turned(truth, 2.0)
+    whole = refinement.refine(source, target, VOXEL, start, RefinementOption())
+    calls = counted_icp(monkeypatch)
+    thin = refinement.refine(source, target, VOXEL, start, RefinementOption(cell=0.5))
+    assert max(n for n, _ in calls) < len(source.points) / 2
+
+    def error(pose):
+        return np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3]))
+
+    assert error(thin) < error(whole) + 0.1 and error(whole) < 1.0
+    assert np.linalg.norm(thin[:3, 3] - whole[:3, 3]) < 1e-3
