@@ -133,35 +133,42 @@ def splat_into(grid: NDArray, u: NDArray, weights: NDArray, trilinear: bool,
     weights : ndarray, shape (N,)
     trilinear, binary : bool
     """
-    nx, ny, nz = grid.shape
     for i in range(u.shape[0]):
-        if trilinear:
-            fx, fy, fz = u[i, 0] - 0.5, u[i, 1] - 0.5, u[i, 2] - 0.5
-        else:
-            fx, fy, fz = u[i, 0], u[i, 1], u[i, 2]
-        bx, by, bz = int(np.floor(fx)), int(np.floor(fy)), int(np.floor(fz))
-        corners = 2 if trilinear else 1
-        for cx in range(corners):
-            x = bx + cx
-            if x < 0 or x >= nx:
+        _add_point(grid, u[i, 0], u[i, 1], u[i, 2], weights[i], trilinear, binary)
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_point(grid: NDArray, ux: float, uy: float, uz: float, weight: float,
+               trilinear: bool, binary: bool) -> None:
+    """Add ``weight`` at the continuous voxel coordinates ``(ux, uy, uz)`` of ``grid``
+    as :func:`splat_into` adds one point's."""
+    nx, ny, nz = grid.shape
+    half = 0.5 if trilinear else 0.0
+    fx, fy, fz = ux - half, uy - half, uz - half
+    bx, by, bz = int(np.floor(fx)), int(np.floor(fy)), int(np.floor(fz))
+    ax, ay, az = fx - bx, fy - by, fz - bz
+    corners = 2 if trilinear else 1
+    for cx in range(corners):
+        x = bx + cx
+        if x < 0 or x >= nx:
+            continue
+        wx = (ax if cx else 1.0 - ax) if trilinear else 1.0
+        for cy in range(corners):
+            y = by + cy
+            if y < 0 or y >= ny:
                 continue
-            wx = (fx - bx if cx else 1.0 - (fx - bx)) if trilinear else 1.0
-            for cy in range(corners):
-                y = by + cy
-                if y < 0 or y >= ny:
+            wy = (ay if cy else 1.0 - ay) if trilinear else 1.0
+            for cz in range(corners):
+                z = bz + cz
+                if z < 0 or z >= nz:
                     continue
-                wy = (fy - by if cy else 1.0 - (fy - by)) if trilinear else 1.0
-                for cz in range(corners):
-                    z = bz + cz
-                    if z < 0 or z >= nz:
-                        continue
-                    wz = (fz - bz if cz else 1.0 - (fz - bz)) if trilinear else 1.0
-                    w = weights[i] * wx * wy * wz
-                    if binary:
-                        if w != 0.0:
-                            grid[x, y, z] = 1.0
-                    else:
-                        grid[x, y, z] += w
+                wz = (az if cz else 1.0 - az) if trilinear else 1.0
+                w = weight * wx * wy * wz
+                if binary:
+                    if w != 0.0:
+                        grid[x, y, z] = 1.0
+                else:
+                    grid[x, y, z] += w
 
 
 @numba.njit(cache=True, nogil=True)
@@ -222,38 +229,13 @@ def _turned_splat(
             count += facing[i]
         if count < min_facing:
             facing[:] = True
-    nx, ny, nz = grid.shape
-    half = 0.5 if trilinear else 0.0
-    corners = 2 if trilinear else 1
     for i in range(n):
-        if not facing[i]:
-            continue
-        p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
-        fx = R[0, 0] * p0 + R[0, 1] * p1 + R[0, 2] * p2 + offset[0] - half
-        fy = R[1, 0] * p0 + R[1, 1] * p1 + R[1, 2] * p2 + offset[1] - half
-        fz = R[2, 0] * p0 + R[2, 1] * p1 + R[2, 2] * p2 + offset[2] - half
-        bx, by, bz = int(np.floor(fx)), int(np.floor(fy)), int(np.floor(fz))
-        ax, ay, az = fx - bx, fy - by, fz - bz
-        for cx in range(corners):
-            x = bx + cx
-            if x < 0 or x >= nx:
-                continue
-            wx = (ax if cx else 1.0 - ax) if trilinear else 1.0
-            for cy in range(corners):
-                y = by + cy
-                if y < 0 or y >= ny:
-                    continue
-                wy = (ay if cy else 1.0 - ay) if trilinear else 1.0
-                for cz in range(corners):
-                    z = bz + cz
-                    if z < 0 or z >= nz:
-                        continue
-                    w = wx * wy * ((az if cz else 1.0 - az) if trilinear else 1.0)
-                    if binary:
-                        if w != 0.0:
-                            grid[x, y, z] = 1.0
-                    else:
-                        grid[x, y, z] += w
+        if facing[i]:
+            p0, p1, p2 = points[i, 0], points[i, 1], points[i, 2]
+            _add_point(grid, R[0, 0] * p0 + R[0, 1] * p1 + R[0, 2] * p2 + offset[0],
+                       R[1, 0] * p0 + R[1, 1] * p1 + R[1, 2] * p2 + offset[1],
+                       R[2, 0] * p0 + R[2, 1] * p1 + R[2, 2] * p2 + offset[2], 1.0,
+                       trilinear, binary)
 
 
 @numba.njit(cache=True, nogil=True)
