@@ -24,6 +24,7 @@ manner of Deep Global Registration's), as ``frontier.png``.
 Usage: python eval/bench_dense.py --suites SUITES --out out/bench_dense [--groups ...]
        [--limit 6] [--rotations 1] [--budgets 1000 2304] [--ransac 1000:0.99 10000:0.999]
        [--all-cores] [--figure]
+       python eval/bench_dense.py --figure-from out/bench_dense/summary.csv --out DIR
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 # isort: on
 
 import argparse
+import csv
 import time
 from pathlib import Path
 
@@ -139,37 +141,45 @@ def markdown(summary: list[dict], names: list[str]) -> str:
 
 
 def figure(summary: list[dict], path: Path) -> None:
-    """Success against median time per kind of problem, the spectral variants as one
-    curve (adaptive, then the dense budgets) and the RANSAC settings as another."""
+    """Success against median time per kind of problem (the groups' calls pooled, the
+    median of the groups' medians), one curve per family: the adaptive search, the dense
+    search at each count, the lean FPFH-RANSAC at each setting, each point labelled."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
 
     kinds = [k for k, groups in KINDS.items() if any(s["group"] in groups for s in summary)]
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.8), squeeze=False)
     for ax, kind in zip(axes[0], kinds, strict=True):
         picked = [s for s in summary if s["group"] in KINDS[kind]]
-        for family, marker in (("adaptive", "o"), ("dense", "s"), ("lean", "^")):
-            names = sorted({s["variant"] for s in picked if s["variant"].startswith(family)})
+        for family, marker, label in (("adaptive", "o", "spectral, adaptive"),
+                                      ("dense", "s", "spectral, dense"),
+                                      ("lean", "^", "lean FPFH-RANSAC")):
             points = []
-            for name in names:
+            for name in sorted({s["variant"] for s in picked
+                                if s["variant"].startswith(family)}):
                 chosen = [s for s in picked if s["variant"] == name]
-                weight = np.array([s["n"] for s in chosen], dtype=float)
-                points.append((np.median([s["median_s"] for s in chosen]),
-                               100 * np.average([s["success"] for s in chosen], weights=weight)))
+                n = np.array([float(s["n"]) for s in chosen])
+                points.append((float(np.median([float(s["median_s"]) for s in chosen])),
+                               100 * float(np.average([float(s["success"]) for s in chosen],
+                                                      weights=n)), name))
             points.sort()
             if points:
-                x, y = zip(*points, strict=True)
-                label = {"adaptive": "spectral, adaptive", "dense": "spectral, dense",
-                         "lean": "lean FPFH-RANSAC"}[family]
+                x, y, names = zip(*points, strict=True)
                 ax.plot(x, y, marker=marker, label=label)
+                for xi, yi, name in points:
+                    ax.annotate(name.removeprefix(family).strip("_") or "default", (xi, yi),
+                                textcoords="offset points", xytext=(3, 3), fontsize=6)
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_title(kind)
         ax.set_xlabel("median seconds per call")
         ax.set_ylabel("success (%)")
         ax.grid(True, alpha=0.3)
-    axes[0][0].legend(fontsize=8)
+    axes[0][0].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -186,7 +196,14 @@ def main() -> None:
     parser.add_argument("--all-cores", action="store_true",
                         help="every method on every core (default: one thread)")
     parser.add_argument("--figure", action="store_true", help="write frontier.png")
+    parser.add_argument("--figure-from", type=Path,
+                        help="only draw frontier.png from a stored summary.csv")
     args = parser.parse_args()
+    if args.figure_from is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        with open(args.figure_from, newline="") as f:
+            figure(list(csv.DictReader(f)), args.out / "frontier.png")
+        return
     if any(n < 1 for n in args.budgets):
         parser.error("--budgets must be positive counts")
     groups = speed.chosen_groups(args)

@@ -30,6 +30,8 @@ BOP_YCBV = ROOT / "o3d_spectral" / "datasets" / "bop_ycbv"
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 #: Every script of ``eval/``, each run by the test ``test_<name>``.
 SCRIPTS = (
+    "bench_correlation.py",
+    "bench_dense.py",
     "bench_density.py",
     "bench_far.py",
     "bench_iteration.py",
@@ -145,6 +147,37 @@ def test_handle_visibility(tmp_path):
     assert all(min(shares[angle, elevation]) <= 0.005 for angle in (30, 45, 60)
                for elevation in (20, 45))
     assert min(shares[120, 20]) > 0.01
+
+
+def test_bench_correlation(tmp_path):
+    """One turntable pair: both grids of the dense search per rotation, then the sweep,
+    each on one worker and two."""
+    printed = run("bench_correlation.py", "--groups", "turntable_45", "--count", 16,
+                  "--dense-count", 64, "--repeats", 1, "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "rows.csv")
+    assert [r["what"] for r in rows] == ["coarse grid", "fine grid", "dense sweep"]
+    assert all(float(r["one"]) > 0 and float(r["many"]) > 0 and float(r["gain"]) > 0
+               for r in rows)
+    assert [r["unit"] for r in rows] == ["ms/rotation", "ms/rotation", "s"]
+    assert len(table_rows(printed, "turntable_45")) == 3
+
+
+def test_bench_dense(tmp_path):
+    """One turntable pair, every variant once: a row each, a summary line each, the
+    figure, and the figure again from the stored summary."""
+    printed = run("bench_dense.py", "--groups", "turntable_45", "--limit", 1, "--budgets", 300,
+                  "--ransac", "100:0.9", "--figure", "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "rows.csv")
+    assert [r["variant"] for r in rows] == ["adaptive", "dense", "dense_300", "lean",
+                                            "lean_100_0.9"]
+    assert all(float(r["seconds"]) > 0 and r["success"] in ("True", "False") for r in rows)
+    summary = read_csv(tmp_path / "summary.csv")
+    assert [(s["group"], s["n"]) for s in summary] == [("turntable_45", "1")] * 5
+    assert table_rows(printed, "turntable_45") and (tmp_path / "frontier.png").stat().st_size
+    again = tmp_path / "again"
+    run("bench_dense.py", "--figure-from", tmp_path / "summary.csv", "--out", again,
+        cwd=tmp_path)
+    assert (again / "frontier.png").stat().st_size > 0
 
 
 def test_bench_density(tmp_path):
