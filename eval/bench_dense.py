@@ -18,8 +18,9 @@ its own). Success as ``bench_speed.py`` scores it (symmetry-aware, 5 degrees and
 Reports per group and variant: n, success, median seconds (every call, right or wrong),
 and the dense search's stage ``sweep`` (its median seconds); writes ``rows.csv``,
 ``summary.csv`` and ``summary.md`` to ``--out``, and with ``--figure`` the success of each
-variant against its median time, one panel per kind of problem (a Pareto view in the
-manner of Deep Global Registration's), as ``frontier.png``.
+variant against its median time (a Pareto view in the manner of Deep Global
+Registration's), one panel per kind of problem as ``frontier.png`` and one per group as
+``frontier_groups.png``.
 
 Usage: python eval/bench_dense.py --suites SUITES --out out/bench_dense [--groups ...]
        [--limit 6] [--rotations 1] [--budgets 1000 2304] [--ransac 1000:0.99 10000:0.999]
@@ -140,20 +141,25 @@ def markdown(summary: list[dict], names: list[str]) -> str:
     return "\n".join(lines)
 
 
-def figure(summary: list[dict], path: Path) -> None:
-    """Success against median time per kind of problem (the groups' calls pooled, the
-    median of the groups' medians), one curve per family: the adaptive search, the dense
-    search at each count, the lean FPFH-RANSAC at each setting, each point labelled."""
+def figure(summary: list[dict], path: Path, panels: dict[str, tuple[str, ...]]) -> None:
+    """Success against median time, one panel per entry of ``panels`` (its groups' calls
+    pooled, the median of their medians), one curve per family: the adaptive search, the
+    dense search at each count, the lean FPFH-RANSAC at each setting, each point
+    labelled."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-    kinds = [k for k, groups in KINDS.items() if any(s["group"] in groups for s in summary)]
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.8), squeeze=False)
-    for ax, kind in zip(axes[0], kinds, strict=True):
-        picked = [s for s in summary if s["group"] in KINDS[kind]]
+    titles = [t for t, groups in panels.items() if any(s["group"] in groups for s in summary)]
+    columns = min(len(titles), 6)
+    rows = -(-len(titles) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.6 * columns, 3.3 * rows), squeeze=False)
+    for ax in axes.flat[len(titles):]:
+        ax.set_visible(False)
+    for ax, title in zip(axes.flat, titles, strict=False):
+        picked = [s for s in summary if s["group"] in panels[title]]
         for family, marker, label in (("adaptive", "o", "spectral, adaptive"),
                                       ("dense", "s", "spectral, dense"),
                                       ("lean", "^", "lean FPFH-RANSAC")):
@@ -167,7 +173,7 @@ def figure(summary: list[dict], path: Path) -> None:
                                                       weights=n)), name))
             points.sort()
             if points:
-                x, y, names = zip(*points, strict=True)
+                x, y, _ = zip(*points, strict=True)
                 ax.plot(x, y, marker=marker, label=label)
                 for xi, yi, name in points:
                     ax.annotate(name.removeprefix(family).strip("_") or "default", (xi, yi),
@@ -175,14 +181,22 @@ def figure(summary: list[dict], path: Path) -> None:
         ax.set_xscale("log")
         ax.xaxis.set_major_formatter(ScalarFormatter())
         ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_title(kind)
+        ax.set_title(title)
         ax.set_xlabel("median seconds per call")
         ax.set_ylabel("success (%)")
         ax.grid(True, alpha=0.3)
     axes[0][0].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def figures(summary: list[dict], out: Path) -> None:
+    """``frontier.png``, a panel per kind of problem, and ``frontier_groups.png``, a panel
+    per group."""
+    figure(summary, out / "frontier.png", KINDS)
+    groups = dict.fromkeys(s["group"] for s in summary)
+    figure(summary, out / "frontier_groups.png", {g: (g,) for g in groups})
 
 
 def main() -> None:
@@ -195,14 +209,15 @@ def main() -> None:
                         help="more RANSAC settings, ITERATIONS:CONFIDENCE")
     parser.add_argument("--all-cores", action="store_true",
                         help="every method on every core (default: one thread)")
-    parser.add_argument("--figure", action="store_true", help="write frontier.png")
+    parser.add_argument("--figure", action="store_true",
+                        help="write frontier.png and frontier_groups.png")
     parser.add_argument("--figure-from", type=Path,
-                        help="only draw frontier.png from a stored summary.csv")
+                        help="only draw the figures from a stored summary.csv")
     args = parser.parse_args()
     if args.figure_from is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         with open(args.figure_from, newline="") as f:
-            figure(list(csv.DictReader(f)), args.out / "frontier.png")
+            figures(list(csv.DictReader(f)), args.out)
         return
     if any(n < 1 for n in args.budgets):
         parser.error("--budgets must be positive counts")
@@ -223,7 +238,7 @@ def main() -> None:
     threads = "one thread" if speed.ONE_THREAD else "every core"
     (args.out / "summary.md").write_text(f"{table}\n\n{threads}; each call timed once\n")
     if args.figure:
-        figure(summary, args.out / "frontier.png")
+        figures(summary, args.out)
     print(table)
 
 

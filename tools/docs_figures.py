@@ -404,6 +404,29 @@ def speed() -> str:
     ])
 
 
+def speed_change() -> str:
+    """The speed bench at two commits run one after the other: each group's median ratio
+    to the lean FPFH-RANSAC and both methods' median seconds, before and now."""
+    now = {r["group"]: r for r in read_csv("speed")}
+    lines = []
+    for before in read_csv("speed_before"):
+        after = now[before["group"]]
+        pair = (before, after)
+        lines.append([before["group"], *(f"{float(r['ratio_median']):.2f}" for r in pair),
+                      *(f"{float(r[k]):.3f}" for k in ("spectral_global_median_s",
+                                                        "fpfh_ransac_lean_median_s")
+                        for r in pair)])
+    b, a = sources()["speed_before"]["commit"], sources()["speed"]["commit"]
+    return "\n".join([
+        table(["group", f"ratio median, {b}", f"ratio median, {a}", f"spectral s, {b}",
+               f"spectral s, {a}", f"lean FPFH s, {b}", f"lean FPFH s, {a}"], lines),
+        "",
+        provenance("speed_before", "speed") + " The two runs one after the other on the "
+        "same instances, one thread; both methods' times drift together between runs by "
+        "up to a quarter on this virtual machine.",
+    ])
+
+
 def speed_stages() -> str:
     """Where the spectral call's time goes, per group: each stage's median seconds and its
     multiple of the lean FPFH-RANSAC's whole call, from ``eval/bench_stages.py``'s rows."""
@@ -982,6 +1005,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "confidence": confidence,
     "density": density,
     "speed": speed,
+    "speed-change": speed_change,
     "cores": cores,
     "speed-stages": speed_stages,
     "settings": settings,
