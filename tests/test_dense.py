@@ -12,7 +12,7 @@ from o3d_spectral.harness.real import (
     randomly_rotated,
     rotation_seed,
 )
-from o3d_spectral.search.candidates import SWEEP_SENSOR_ANGLE
+from o3d_spectral.search.candidates import SWEEP_PLACEMENTS, SWEEP_SENSOR_ANGLE
 from o3d_spectral.search.dense import compass, dense_candidates, dense_rotations
 from o3d_spectral.search.situation import Kind, situation
 from o3d_spectral.spectra import so3
@@ -60,7 +60,8 @@ def test_the_first_dense_candidate_is_the_truth_where_the_adaptive_search_misses
     stepper = o3d_spectral.SpectralStepper(far_scans.target, 0.005)
     moving = stepper.moving(far_scans.source)
     found = dense_candidates(stepper, moving, 4608, two_scans=True, workers=2)
-    assert found[0].key[-1] == "refined"
+    assert len(found) == SWEEP_PLACEMENTS and found[0].key[-1] == "refined"
+    assert len({c.key for c in found}) == len(found)
     assert [c.value for c in found] == sorted((c.value for c in found), reverse=True)
     error = so3.rotation_angle(found[0].rotation.T @ far_scans.T_gt[:3, :3])
     assert np.rad2deg(error) < 5.0
@@ -95,3 +96,15 @@ def test_the_dense_search_registers_scans_120_degrees_apart(pair, rotation):
 def test_the_dense_settings_are_checked(field, value, error):
     with pytest.raises(error, match=field):
         o3d_spectral.GlobalSearchOption(**{field: value})
+
+
+def test_a_small_cloud_is_ranked_on_the_voxel_alone_and_hands_over_a_few_candidates():
+    """A YCB-Video crop at 8 mm spans too few cells for a coarser grid: every rotation is
+    ranked on the voxel's, and only the best few are handed to the placement."""
+    case = load_cases(["ycbv_crop"])[0]
+    stepper = o3d_spectral.SpectralStepper(case.target, 0.008)
+    moving = stepper.moving(case.source)
+    found = dense_candidates(stepper, moving, 500, two_scans=False, workers=2)
+    assert len(found) == SWEEP_PLACEMENTS
+    assert sum(c.key[-1] == "refined" for c in found) >= 1
+    assert [c.value for c in found] == sorted((c.value for c in found), reverse=True)

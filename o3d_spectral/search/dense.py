@@ -38,7 +38,13 @@ from numpy.typing import NDArray
 from ..correlation import BatchedCorrelation, TurnedCloud
 from ..spectra import so3
 from ..stepper import MovingCloud, SpectralStepper
-from .candidates import SWEEP_SENSOR_ANGLE, Candidate, span_factor, turned_correlation
+from .candidates import (
+    SWEEP_PLACEMENTS,
+    SWEEP_SENSOR_ANGLE,
+    Candidate,
+    span_factor,
+    turned_correlation,
+)
 from .placement import placement_factor
 
 __all__ = [
@@ -90,10 +96,11 @@ def dense_candidates(
     stepper: SpectralStepper, moving: MovingCloud, count: int, *, two_scans: bool,
     workers: int | None = 1,
 ) -> list[Candidate]:
-    """The dense search's candidates, best first: the :data:`REFINED` rotations refined
-    by the compass search (key ``("dense", i, "refined")``, ``i`` the start's index among
-    the ``count`` rotations), then the next best of the voxel's ranking (``("dense",
-    i)``); value: the peak height on the placement's grid (the module docstring)."""
+    """The dense search's :data:`~o3d_spectral.search.candidates.SWEEP_PLACEMENTS`
+    candidates, best first: the :data:`REFINED` rotations refined by the compass search
+    (key ``("dense", i, "refined")``, ``i`` the start's index among the ``count``
+    rotations) and the next best of the placement grid's ranking (``("dense", i)``);
+    value: the peak height on the placement's grid (the module docstring)."""
     index, rotations = dense_rotations(stepper, moving, count, two_scans=two_scans)
     coarse = span_factor(stepper.voxel_size, moving.radius, COARSE_SPAN)
     fine = placement_factor(stepper.voxel_size, moving.radius, two_scans=two_scans)
@@ -112,8 +119,8 @@ def dense_candidates(
     found = [Candidate(("dense", int(index[i]), "refined"), R, float(h))
              for i, R, h in zip(starts, refined, peaks, strict=True)]
     found += [Candidate(("dense", int(index[i])), rotations[i], float(heights[i]))
-              for i in order if i not in starts]
-    return sorted(found, key=lambda c: -c.value)
+              for i in order[: SWEEP_PLACEMENTS + len(starts)] if i not in starts]
+    return sorted(found, key=lambda c: -c.value)[:SWEEP_PLACEMENTS]
 
 
 def _separated(
