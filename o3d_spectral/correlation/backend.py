@@ -163,16 +163,11 @@ class CompiledBackend(Backend):
         """:meth:`Backend.forward` into this thread's workspace (overwritten by its next
         batch), transforming only the lines the grids reach, one axis at a time
         (:func:`o3d_spectral.spectra.fft.padded_forward`, in place)."""
-        import scipy.fft
+        from ..spectra.fft import padded_forward
 
         spectra = self._workspace((len(grids), shape[0], shape[1], shape[2] // 2 + 1),
                                   np.complex64)
-        block = grids.shape[1:]
-        spectra[:, : block[0], : block[1]] = scipy.fft.rfft(grids, n=shape[2], axis=-1)
-        spectra[:, : block[0], block[1] :] = 0.0  # the zero padding
-        spectra[:, block[0] :] = 0.0
-        scipy.fft.fft(spectra[:, : block[0]], axis=-2, overwrite_x=True)
-        return scipy.fft.fft(spectra, axis=-3, overwrite_x=True)
+        return padded_forward(grids, shape, out=spectra)
 
     def whiten(
         self, spectra: NDArray[np.complex64], fixed: NDArray[np.complex64],
