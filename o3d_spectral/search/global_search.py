@@ -143,13 +143,14 @@ class GlobalSearch:
                                                option.shell_hypotheses)
             self.state.candidates = candidates
         candidates, ranked_already = list(self.state.candidates), []
-        if sweep and self.sweeps and option.rotations == "dense":
-            ranked_already = dense_candidates(stepper, moving, option.dense_rotations,
-                                              two_scans=self.situation.two_scans,
-                                              workers=option.workers)
-        elif sweep and self.sweeps:
-            candidates += swept_candidates(stepper, moving, option.sweep_rotations,
-                                           option.workers)
+        if sweep and self.sweeps:
+            if option.rotations == "dense":
+                ranked_already = dense_candidates(stepper, moving, option.dense_rotations,
+                                                  two_scans=self.situation.two_scans,
+                                                  workers=option.workers)
+            else:
+                candidates += swept_candidates(stepper, moving, option.sweep_rotations,
+                                               option.workers)
         ranked = place(stepper, moving, candidates, self.state.placements,
                        two_scans=self.situation.two_scans,
                        coarse_placements=option.coarse_placements, workers=option.workers)
