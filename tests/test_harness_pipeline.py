@@ -11,6 +11,7 @@ from o3d_spectral.harness import load_results, method_names, method_settings, ru
 from o3d_spectral.harness.records import TABLE_FILE, read_config, result_files
 from o3d_spectral.synthetic.suite import make_suite
 from tests.conftest import full_suite
+from tests.latex import compile_tables, needs_latex
 
 VOLATILE = {"time_s"}  # the only column allowed to differ between identical runs
 
@@ -113,6 +114,16 @@ def test_report_writes_every_table_and_plot(run_dir, tmp_path):
     assert "rad$^2$" in table1
     report = (out / "report.md").read_text()
     assert "](table1" not in report and "![Time per registration](time.png)" in report
+
+
+@needs_latex
+@pytest.mark.slow
+def test_every_report_table_compiles_with_pdflatex(run_dir, tmp_path):
+    assert main(["report", str(run_dir), "--out", str(tmp_path / "report")]) == 0
+    tables = sorted((tmp_path / "report").glob("*.tex"))
+    text = " ".join(compile_tables([p.read_text() for p in tables], tmp_path / "tex").split())
+    for method in method_names():
+        assert method in text, method
 
 
 @pytest.mark.slow

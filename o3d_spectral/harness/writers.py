@@ -6,16 +6,18 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 from o3d_spectral.harness.tables import Table
 
-__all__ = ["to_latex", "to_markdown", "write_table", "write_rows", "write_figure"]
+__all__ = ["markdown_text", "tex_prose", "tex_text", "to_latex", "to_markdown", "write_figure",
+           "write_rows", "write_table"]
 
 
 def _cell(value, kind: str, *, latex: bool) -> str:
     if kind == "text":
-        return _tex_text(str(value)) if latex else str(value)
+        return tex_text(str(value)) if latex else markdown_text(str(value))
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "--" if latex else "–"
     if kind == "int":
@@ -28,18 +30,58 @@ def _cell(value, kind: str, *, latex: bool) -> str:
     return f"{value:.{int(kind[1])}f}"
 
 
-def _tex_text(text: str) -> str:
-    """Plain text (Markdown code quotes dropped) made safe for LaTeX."""
-    for plain, tex in (("`", ""), ("_", r"\_"), ("%", r"\%"), ("²", "$^2$"), ("≤", "$\\le$")):
-        text = text.replace(plain, tex)
-    return text
+#: LaTeX for each character that LaTeX reads as a command (``\ & % $ # _ { } ~ ^``),
+#: sets as another glyph in its default OT1 encoding (``< > |``), or joins into a
+#: ligature (`` ` ' ``, and ``--`` / ``,,`` by the rule in :data:`_TEX_CHARACTER`), and
+#: for the few Unicode signs the harness's own headers use: each renders as itself
+#: with and without ``\usepackage[T1]{fontenc}``.
+_TEX = {
+    "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+    "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+    "<": r"\textless{}", ">": r"\textgreater{}", "|": r"\textbar{}",
+    "`": r"\textasciigrave{}", "'": r"\textquotesingle{}", "-": "-{}", ",": ",{}",
+    "²": "$^2$", "≤": r"$\le$", "≥": r"$\ge$", "±": r"$\pm$", "×": r"$\times$",
+    "°": r"\textdegree{}",
+}
+#: The characters :data:`_TEX` replaces; a hyphen or comma only before another one.
+_TEX_CHARACTER = re.compile(r"[\\&%$#_{}~^<>|`'²≤≥±×°]|-(?=-)|,(?=,)")
+_CODE_SPAN = re.compile(r"`([^`]+)`")
+
+
+def tex_text(text: str) -> str:
+    """``text`` as LaTeX that typesets exactly ``text`` (line breaks become spaces).
+
+    Examples
+    --------
+    >>> print(tex_text("fpfh&icp R^2 {x} my_method~v2"))
+    fpfh\\&icp R\\textasciicircum{}2 \\{x\\} my\\_method\\textasciitilde{}v2
+    """
+    text = text.replace("\r", " ").replace("\n", " ")
+    return _TEX_CHARACTER.sub(lambda match: _TEX[match.group()[0]], text)
+
+
+def tex_prose(text: str) -> str:
+    """A caption's Markdown (plain text with `` `code` `` spans) as LaTeX: the spans in
+    ``\\texttt``, the rest typeset as written, its apostrophes as typographic ones."""
+    parts = _CODE_SPAN.split(text)
+    return "".join(
+        tex_text(part).replace(_TEX["'"], "'") if k % 2 == 0
+        else rf"\texttt{{{tex_text(part)}}}"
+        for k, part in enumerate(parts)
+    )
+
+
+def markdown_text(text: str) -> str:
+    """``text`` as one GitHub Markdown table cell: ``|`` escaped, line breaks as spaces."""
+    return text.replace("\r", " ").replace("\n", " ").replace("|", r"\|")
 
 
 def to_markdown(table: Table) -> str:
     """The table as a GitHub Markdown table (numbers right-aligned)."""
     columns = list(table.frame.columns)
     align = ["---" if table.formats[c] == "text" else "---:" for c in columns]
-    lines = ["| " + " | ".join(columns) + " |", "| " + " | ".join(align) + " |"]
+    header = " | ".join(markdown_text(str(c)) for c in columns)
+    lines = [f"| {header} |", "| " + " | ".join(align) + " |"]
     for row in table.frame.itertuples(index=False):
         cells = [_cell(v, table.formats[c], latex=False) for c, v in zip(columns, row, strict=True)]
         lines.append("| " + " | ".join(cells) + " |")
@@ -61,11 +103,11 @@ def to_latex(table: Table) -> str:
         [
             r"\begin{table}[t]",
             r"\centering",
-            rf"\caption{{{_tex_text(table.caption)}}}",
+            rf"\caption{{{tex_prose(table.caption)}}}",
             rf"\label{{tab:{table.name}}}",
             rf"\begin{{tabular}}{{{spec}}}",
             r"\toprule",
-            " & ".join(_tex_text(c) for c in columns) + r" \\",
+            " & ".join(tex_text(str(c)) for c in columns) + r" \\",
             r"\midrule",
             *body,
             r"\bottomrule",
