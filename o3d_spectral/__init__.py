@@ -24,7 +24,7 @@ import logging as _logging
 from importlib import metadata as _metadata
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_attributes
+from ._lazy import lazy_attributes, lazy_dir
 
 if TYPE_CHECKING:  # the names below, for type checkers; imported on first access at run time
     from .law import IterationRecord
@@ -101,10 +101,7 @@ __getattr__ = lazy_attributes(
         "Evaluation": "stepper",
     },
 )
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+__dir__ = lazy_dir(globals(), __all__)
 
 
 try:  # the installed distribution's version, so it cannot drift from pyproject.toml

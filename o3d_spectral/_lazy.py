@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 
@@ -28,3 +28,11 @@ def lazy_attributes(package: str, where: dict[str, str]) -> Callable[[str], Any]
         return getattr(importlib.import_module(f"{package}.{module}"), name)
 
     return __getattr__
+
+
+def lazy_dir(namespace: dict[str, Any], names: Iterable[str]) -> Callable[[], list[str]]:
+    """A module ``__dir__`` listing the module's own ``namespace`` (its ``globals()``) and
+    the ``names`` it loads lazily (its ``__all__``), for ``dir()``, ``help()`` and tab
+    completion, which look only at what is already imported otherwise."""
+    names = frozenset(names)
+    return lambda: sorted(names.union(namespace))

@@ -46,3 +46,19 @@ def test_only_the_package_is_importable_from_the_top_level():
     assert not (root / "datasets").exists()
     assert (PACKAGE / "datasets" / "objects").is_dir()
     assert not list((PACKAGE / "datasets").rglob("*.py"))
+
+
+def test_dir_lists_every_lazily_loaded_name():
+    """``dir()``, ``help()`` and tab completion see the names a package loads on first
+    access: checked in a fresh interpreter, where none is loaded yet."""
+    import subprocess
+    import sys
+
+    code = ("import importlib\n"
+            "for name in ('o3d_spectral', 'o3d_spectral.harness', 'o3d_spectral.synthetic'):\n"
+            "    package = importlib.import_module(name)\n"
+            "    missing = set(package.__all__) - set(dir(package))\n"
+            "    assert not missing, (name, sorted(missing))\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=PACKAGE.parent, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]

@@ -25,7 +25,7 @@ live with the models (:mod:`~o3d_spectral.synthetic.symmetry`), which the scene 
 and the pose errors both use.
 """
 
-from o3d_spectral._lazy import lazy_attributes
+from o3d_spectral._lazy import lazy_attributes, lazy_dir
 
 __all__ = [
     "BopSet",
@@ -75,3 +75,4 @@ __getattr__ = lazy_attributes(
         "translation_error": "errors",
     },
 )
+__dir__ = lazy_dir(globals(), __all__)
