@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import open3d as o3d
@@ -11,10 +12,11 @@ import pytest
 from o3d_spectral.cli import main
 from o3d_spectral.harness import bop_write, pose_metrics
 from o3d_spectral.harness.bop import BopSet, symmetry_of
-from o3d_spectral.harness.pairs import PairSet, read_log, write_log
+from o3d_spectral.harness.pairs import PairSet, information_rmse, read_log, write_log
 from o3d_spectral.harness.real import real_dir, write_dragon_pairs
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.symmetry import Symmetry
+from tests.latex import compile_tables
 
 K = np.array([[600.0, 0.0, 320.0], [0.0, 600.0, 240.0], [0.0, 0.0, 1.0]])
 SHAPE = (480, 640)
@@ -142,7 +144,9 @@ def test_pairs_read_and_score(pairs_dir):
     pair = pairs[0]
     moved = np.asarray(o3d.geometry.PointCloud(pair.source).transform(pair.T_gt).points)
     np.testing.assert_allclose(moved, np.asarray(pair.target.points), atol=1e-6)
-    assert pairs.score(pair.T_gt, 0) == {"re_deg": 0.0, "te_m": 0.0, "recalled": True}
+    exact = pairs.score(pair.T_gt, 0)
+    assert exact == {"re_deg": 0.0, "te_m": 0.0, "recalled": True,
+                     "rmse_m": pytest.approx(0.0, abs=1e-12), "rmse_recalled": True}
     off = pair.T_gt @ _pose((1, 0, 0), 16.0, np.zeros(3))
     assert pairs.score(off, 0)["re_deg"] == pytest.approx(16.0)
     assert not pairs.score(off, 0)["recalled"]
@@ -151,14 +155,56 @@ def test_pairs_read_and_score(pairs_dir):
     assert not pairs.score(far, 0)["recalled"]
 
 
+def _information(points):
+    """``gt.info``'s matrix by hand: the sum of ``J^T J``, ``J = [I, -2 [p]x]``."""
+    def jacobian(p):
+        skew = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
+        return np.hstack([np.eye(3), -2 * skew])
+    return sum(jacobian(p).T @ jacobian(p) for p in np.asarray(points, float))
+
+
+def test_information_rmse_by_hand():
+    information = _information([(1, 0, 0), (0, 2, 0)])
+    slide = _pose((0, 0, 1), 0.0, (0.03, 0.04, 0.0))
+    assert information_rmse(slide, np.eye(4), information) == pytest.approx(0.05)
+    # A 60 degree turn about z: the points travel chords 2 r sin(30 deg) = r, of mean
+    # square (1 + 4) / 2.
+    turn = _pose((0, 0, 1), 60.0, np.zeros(3))
+    assert information_rmse(turn, np.eye(4), information) == pytest.approx(np.sqrt(2.5))
+    # The error is measured from the truth: inv(T_gt) @ T.
+    truth = _pose((1, 1, 0), 40.0, (1.0, -2.0, 0.5))
+    assert information_rmse(truth @ turn, truth, information) == pytest.approx(np.sqrt(2.5))
+    assert information_rmse(truth, truth, information) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_pairs_score_both_recalls(pairs_dir):
+    pairs = PairSet(pairs_dir)
+    off = pairs[0].T_gt @ _pose((0, 0, 1), 0.0, (0.15, 0.0, 0.0))
+    score = pairs.score(off, 0)
+    assert score["rmse_m"] == pytest.approx(0.15) and score["rmse_recalled"]  # gt.info: I
+    assert not pairs.score(pairs[0].T_gt @ _pose((0, 0, 1), 0.0, (0.25, 0, 0)),
+                           0)["rmse_recalled"]
+    (pairs_dir / "gt.info").unlink()
+    score = PairSet(pairs_dir).score(off, 0)
+    assert score["rmse_m"] is None and score["rmse_recalled"] is None and score["recalled"]
+
+
+def test_gt_info_not_positive_semi_definite_is_named(pairs_dir):
+    for matrix in (np.diag([1.0, 1, 1, 1, 1, -1]), np.eye(6) + np.eye(6, k=1),
+                   np.diag([0.0, 1, 1, 1, 1, 1])):
+        write_log(pairs_dir / "gt.info", {(0, 1): matrix}, 2)
+        with pytest.raises(ValueError, match=r"gt.info, pair 0 1 \(line 1\): information"):
+            PairSet(pairs_dir)
+
+
 def test_pairs_errors_and_evaluation_folder(pairs_dir):
     evaluation = pairs_dir.parent / "boxes-evaluation"
     evaluation.mkdir()
     for name in ("gt.log", "gt.info"):
         (pairs_dir / name).rename(evaluation / name)
     assert len(PairSet(pairs_dir)) == 1  # 3DMatch ships the truth beside the fragments
-    (evaluation / "gt.info").unlink()
-    with pytest.raises(FileNotFoundError, match="gt.info"):
+    (evaluation / "gt.log").unlink()
+    with pytest.raises(FileNotFoundError, match="gt.log"):
         PairSet(pairs_dir)
     (evaluation / "gt.log").write_text("0 1 2\n1 0 0\n")
     with pytest.raises(ValueError, match="gt.log, line 1"):
@@ -173,6 +219,16 @@ def test_dragon_pairs_in_3dmatch_layout(tmp_path):
         pair.source, pair.target, 0.002, pair.T_gt)
     assert fit.fitness > 0.8  # scan 24 deg onto scan 0: about 91% overlap
     assert len(read_log(tmp_path / "dragon" / "gt.info", 6)) == 18
+    # gt.info in the benchmark's convention: for a small error its RMSE is the RMSE the
+    # error moves the overlap's points by (second order: within a few percent).
+    error = _pose((0.3, -1, 0.5), 0.5, (0.001, -0.002, 0.0005))
+    source = np.asarray(pair.source.points)
+    moved = source @ error[:3, :3].T + error[:3, 3]
+    target = o3d.geometry.KDTreeFlann(o3d.geometry.PointCloud(pair.target).transform(
+        np.linalg.inv(pair.T_gt)))
+    overlap = [k for k, p in enumerate(source) if target.search_radius_vector_3d(p, 0.002)[0]]
+    direct = np.sqrt(np.mean(np.sum((moved - source)[overlap] ** 2, axis=1)))
+    assert pairs.score(pair.T_gt @ error, 0)["rmse_m"] == pytest.approx(direct, rel=0.02)
 
 
 @pytest.mark.slow
@@ -189,6 +245,11 @@ def test_eval_and_report_on_both_benchmarks(bop_dir, pairs_dir, tmp_path, capsys
     assert "boxes_test_crop" in bop and "boxes_test_frame" in bop
     pairs = (tmp_path / "report" / "pairs.md").read_text()
     assert "| boxes | icp_point_to_plane | 1 |" in pairs
+    if shutil.which("pdflatex") and shutil.which("pdftotext"):
+        tables = sorted((tmp_path / "report").glob("*.tex"))
+        assert {"bop.tex", "pairs.tex"} <= {path.name for path in tables}
+        text = compile_tables([path.read_text() for path in tables], tmp_path / "tex")
+        assert "recall RMSE (%)" in text and "boxes_test_crop" in text
     assert main(["eval", "--out", str(out)]) == 2
     assert main(["eval", "--suite", str(out), "--scenes", "1", "--out", str(out)]) == 2
     assert "go with --bop" in capsys.readouterr().err
@@ -200,6 +261,7 @@ def test_the_report_tables_count_by_hand():
     import pandas as pd
 
     from o3d_spectral.harness.tables import bop_table, pairs_table
+    from o3d_spectral.harness.writers import to_markdown
 
     common = {"method": "m", "time_s": 1.0}
     bop = pd.DataFrame([
@@ -213,14 +275,37 @@ def test_the_report_tables_count_by_hand():
         2, 0.5, 0.5, 0.5, 0.5)
     pairs = pd.DataFrame([
         {"suite": "scene", "condition": "pairs", "index": 0, "success": True,
-         "recalled": True, "re_deg": 2.0, "te_m": 0.01, **common},
+         "recalled": True, "re_deg": 2.0, "te_m": 0.01, "rmse_m": 0.1,
+         "rmse_recalled": True, **common},
         {"suite": "scene", "condition": "pairs", "index": 1, "success": False,
-         "recalled": False, "re_deg": 40.0, "te_m": 0.5, **common},
+         "recalled": False, "re_deg": 40.0, "te_m": 0.5, "rmse_m": 0.15,
+         "rmse_recalled": True, **common},
+        {"suite": "scene", "condition": "pairs", "index": 2, "success": False, **common},
+        {"suite": "no_info", "condition": "pairs", "index": 0, "success": True,
+         "recalled": True, "re_deg": 1.0, "te_m": 0.02, "rmse_m": None,
+         "rmse_recalled": None, **common},
     ])
-    row = pairs_table(pairs).frame.iloc[0]
-    assert (row["recall (%)"], row["RE (deg)"], row["TE (cm)"]) == (0.5, 2.0, 1.0)
+    table = pairs_table(pairs)
+    rows = table.frame.set_index("scene")
+    row = rows.loc["scene"]  # a run that raised counts as recalled by neither
+    assert (row["pairs"], row["recall RE/TE (%)"], row["recall RMSE (%)"]) == (3, 1 / 3, 2 / 3)
+    assert (row["RE (deg)"], row["TE (cm)"]) == (2.0, 1.0)
+    unscored = rows.loc["no_info"]
+    assert unscored["recall RE/TE (%)"] == 1.0 and pd.isna(unscored["recall RMSE (%)"])
+    assert "| no_info | m | 1 | 100.0 | – |" in to_markdown(table)
+    assert "a dash where the scene has no `gt.info`" in table.caption
 
 
 def test_mspd_of_a_pose_behind_the_camera_is_infinite():
     points = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])
     assert pose_metrics.mspd(np.eye(4), T_GT, points, K) == np.inf
+
+
+def test_eval_says_the_rmse_recall_is_unavailable_without_gt_info(pairs_dir, tmp_path, capsys):
+    (pairs_dir / "gt.info").unlink()
+    assert main(["eval", "--pairs", str(pairs_dir), "--methods", "icp_point_to_plane",
+                 "--out", str(tmp_path / "run")]) == 0
+    assert "no gt.info beside gt.log" in capsys.readouterr().err
+    assert main(["report", str(tmp_path / "run"), "--out", str(tmp_path / "report")]) == 0
+    row = (tmp_path / "report" / "pairs.md").read_text().splitlines()[-1]
+    assert row.startswith("| boxes | icp_point_to_plane | 1 | 100.0 | – |"), row

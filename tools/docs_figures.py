@@ -182,11 +182,13 @@ def bop() -> str:
 
 
 def pairs() -> str:
-    rows = [[r["method"], r["pairs"], f"{100 * float(r['recall (%)']):.1f}%",
+    rows = [[r["method"], r["pairs"], f"{100 * float(r['recall RE/TE (%)']):.1f}%",
+             f"{100 * float(r['recall RMSE (%)']):.1f}%",
              f"{float(r['RE (deg)']):.2f}", f"{float(r['TE (cm)']):.2f}"]
             for r in read_csv("dragon_3dmatch")]
     return "\n".join([
-        table(["method", "pairs", "recall", "RE (deg)", "TE (cm)"], rows),
+        table(["method", "pairs", "recall RE < 15 deg, TE < 30 cm", "recall RMSE <= 20 cm",
+               "RE (deg)", "TE (cm)"], rows),
         "",
         provenance("dragon_3dmatch"),
     ])

@@ -4,9 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 
 from .arguments import seed
+
+log = logging.getLogger(__name__)
 
 EXAMPLES = (
     "examples:\n"
@@ -93,7 +96,8 @@ def _add_benchmark_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--pairs", metavar="DIR",
         help="a 3DMatch-layout folder (cloud_bin_*.ply, gt.log, gt.info), or a folder of "
-        "such scenes; scored also by registration recall (RE < 15 deg, TE < 30 cm)",
+        "such scenes; scored also by both registration recalls (RE < 15 deg and TE < 30 cm; "
+        "RMSE under gt.info <= 20 cm, unavailable without gt.info)",
     )
 
 
@@ -110,7 +114,12 @@ def _instance_sets(args: argparse.Namespace) -> list:
     if args.bop is not None:
         sets += bop_sets(args.bop, args.split, scenes=args.scenes, objects=args.objects)
     if args.pairs is not None:
-        sets += pair_sets(args.pairs)
+        pairs = pair_sets(args.pairs)
+        for scene in pairs:
+            if scene.information is None:
+                log.warning("%s: no gt.info beside gt.log: its pairs are scored by the RE / TE "
+                            "recall only, the RMSE recall is unavailable", scene.root)
+        sets += pairs
     return sets
 
 

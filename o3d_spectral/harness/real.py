@@ -181,15 +181,15 @@ def write_dragon_pairs(out: str | Path, max_step: int = 72) -> Path:
     pair at most ``max_step`` degrees apart (72: the pairs sharing 55% or more of their
     surface; 3DMatch lists those sharing over 30%) with the transformation taking scan
     ``j`` onto scan ``i``, ``inv(W_i) W_j`` (:func:`dragon_pose`), and ``gt.info`` the
-    pairs' information matrices (Open3D's ``get_information_matrix_from_point_clouds``
-    within 2 mm, rows and columns reordered translation first).
+    pairs' information matrices in the benchmark's convention (:func:`~o3d_spectral.
+    harness.pairs.information_matrix`).
 
     Returns
     -------
     Path
         The folder ``out`` (created if missing).
     """
-    from o3d_spectral.harness.pairs import write_log
+    from o3d_spectral.harness.pairs import information_matrix, write_log
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -202,14 +202,11 @@ def write_dragon_pairs(out: str | Path, max_step: int = 72) -> Path:
                            lambda name, cloud=cloud: o3d.io.write_point_cloud(name, cloud))
         clouds.append(cloud)
     log, info = {}, {}
-    order = [3, 4, 5, 0, 1, 2]  # Open3D's (rotation, translation) to translation first
     for i, a in enumerate(DRAGON_ANGLES):
         for j, b in enumerate(DRAGON_ANGLES):
             if 0 < b - a <= max_step:
                 log[(i, j)] = np.linalg.inv(dragon_pose(a)) @ dragon_pose(b)
-                matrix = o3d.pipelines.registration.get_information_matrix_from_point_clouds(
-                    clouds[j], clouds[i], 0.002, log[(i, j)])
-                info[(i, j)] = np.asarray(matrix)[np.ix_(order, order)]
+                info[(i, j)] = information_matrix(clouds[j], clouds[i], log[(i, j)])
     write_log(out / "gt.log", log, len(DRAGON_ANGLES))
     write_log(out / "gt.info", info, len(DRAGON_ANGLES))
     return out
