@@ -186,6 +186,23 @@ def check_voxel_span(voxel_size: float, extent: float, name: str) -> None:
         )
 
 
+def check_reach(init: NDArray[np.float64], source: NDArray[np.float64],
+                target: NDArray[np.float64], voxel_size: float, name: str = "init") -> None:
+    """``ValueError`` naming ``init`` when it places the ``source`` points (n, 3) so far
+    from the ``target`` points (m, 3), metres, that one grid of ``voxel_size`` over both
+    would span over :data:`MAX_VOXELS_ACROSS` voxels."""
+    placed = source @ init[:3, :3].T + init[:3, 3]
+    extent = float(np.max(np.maximum(placed.max(0), target.max(0))
+                          - np.minimum(placed.min(0), target.min(0))))
+    if not extent <= MAX_VOXELS_ACROSS * voxel_size:
+        raise ValueError(
+            f"{name} places the source so far from the target that the two span "
+            f"{extent:.4g} m, over {MAX_VOXELS_ACROSS} voxels of voxel_size={voxel_size:g} m "
+            f"(no voxel grid could hold both; check {name}'s translation is in metres), "
+            f"got translation {init[:3, 3].tolist()}"
+        )
+
+
 def check_point(name: str, value: object) -> tuple[float, float, float] | None:
     """``value`` must be None or three finite coordinates (metres); returns a tuple."""
     if value is None:

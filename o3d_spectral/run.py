@@ -17,7 +17,13 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from . import centring
-from ._checks import check_instance, check_number, check_transformation, check_voxel_size
+from ._checks import (
+    check_instance,
+    check_number,
+    check_reach,
+    check_transformation,
+    check_voxel_size,
+)
 from .confidence_model import confidence
 from .diagnostics import registration_warnings
 from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
@@ -119,6 +125,7 @@ def start(
         target = fixed.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     check_same_units(source.points, target.points)  # 50x apart: other units, or a scene to crop
+    check_reach(init, source.points, target.points, voxel_size)
     # a dense cloud read one point per quarter-voxel cell, as prepare(_target) reads it
     (source, source_index), (target, target_index) = (read_at_voxels(c, voxel_size)
                                                       for c in (source, target))

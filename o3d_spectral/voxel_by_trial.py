@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._checks import real_array, shown
 from .diagnostics import may_be_wrong
 from .registration import registration_spectral_global
 from .result import SpectralRegistrationResult
@@ -104,6 +105,8 @@ def voxel_trial(
 
     Raises
     ------
+    TypeError
+        For a ``ladder`` that is not a sequence of real numbers (``None``, a string).
     ValueError
         For an empty ``ladder`` or a factor that is not a positive number, and as
         :func:`~o3d_spectral.suggest_voxel_size` and the registration call.
@@ -122,12 +125,12 @@ def voxel_trial(
     >>> trial = o3d_spectral.voxel_trial(model, scan)  # doctest: +SKIP
     >>> trial.voxel_size, trial.result.confidence, trial.agreed  # doctest: +SKIP
     """
-    factors = [float(f) for f in ladder]
-    if not factors or not all(np.isfinite(f) and f > 0.0 for f in factors):
-        raise ValueError(f"ladder must hold positive factors, got {list(ladder)!r}")
+    factors = real_array("ladder", ladder)  # TypeError for None, strings, objects
+    if factors.ndim != 1 or not factors.size or not np.all(np.isfinite(factors) & (factors > 0)):
+        raise ValueError(f"ladder must be a sequence of positive factors, got {shown(ladder)}")
     rule = suggest_voxel_size(source, target)
     trials: list[VoxelTrial] = []
-    for factor in factors:
+    for factor in factors.tolist():
         voxel_size = rule * factor
         trials.append(VoxelTrial(voxel_size, registration_spectral_global(
             source, target, voxel_size, **options)))

@@ -374,6 +374,16 @@ def test_init_of_any_type_registers_or_is_refused_by_name(init):
     _registers_or_names("init", init=init)
 
 
+@pytest.mark.parametrize("shift", [1e300, 1e30, 1e6])
+def test_an_init_beyond_any_grid_is_refused_by_name(shift):
+    """A translation no voxel grid over both clouds could span (an overflow, once)."""
+    source = _small_pair()
+    init = np.eye(4)
+    init[1, 3] = -shift
+    with pytest.raises(ValueError, match=r"^init places the source so far from the target"):
+        o3d_spectral.registration_spectral(source, source, VOXEL, init)
+
+
 def test_near_rigid_init_is_made_rigid_and_far_from_rigid_refused():
     from scipy.spatial.transform import Rotation
 

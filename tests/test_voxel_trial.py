@@ -23,6 +23,12 @@ def test_a_ladder_without_positive_factors_is_refused(drill_view, ladder):
         o3d_spectral.voxel_trial(drill_view.source, drill_view.target, ladder=ladder)
 
 
+@pytest.mark.parametrize("ladder", [None, "1.0", 1.5, [[1.0]], [1.0, "x"]])
+def test_a_ladder_that_is_not_a_sequence_of_numbers_is_named(drill_view, ladder):
+    with pytest.raises((TypeError, ValueError), match="^ladder must be"):
+        o3d_spectral.voxel_trial(drill_view.source, drill_view.target, ladder=ladder)
+
+
 def test_two_sizes_agreeing_end_the_ladder(drill_view):
     rule = o3d_spectral.suggest_voxel_size(drill_view.source, drill_view.target)
     trial = o3d_spectral.voxel_trial(drill_view.source, drill_view.target)
