@@ -21,7 +21,6 @@ and bandwidth conventions.
 """
 
 import logging as _logging
-from importlib import metadata as _metadata
 from typing import TYPE_CHECKING
 
 from ._lazy import lazy_attributes, lazy_dir
@@ -99,15 +98,10 @@ __getattr__ = lazy_attributes(
         "SpectralStepper": "stepper",
         "MovingCloud": "stepper",
         "Evaluation": "stepper",
+        "__version__": "_version",  # importlib.metadata takes longer than the rest
     },
 )
-__dir__ = lazy_dir(globals(), __all__)
-
-
-try:  # the installed distribution's version, so it cannot drift from pyproject.toml
-    __version__ = _metadata.version("o3d-spectral")
-except _metadata.PackageNotFoundError:  # not installed: a bare source tree on sys.path
-    __version__ = "0+unknown"
+__dir__ = lazy_dir(globals(), [*__all__, "__version__"])
 
 # Library convention: the package logs to the "o3d_spectral" logger and prints nothing
 # unless the application configures logging (the CLI does).

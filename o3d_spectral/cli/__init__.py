@@ -9,7 +9,9 @@ Errors are handled once, in :func:`main`: a command raises and ``main`` prints o
 code: 0 success, 1 a failed run (any exception while running), 2 a usage error (argparse's
 own, or :class:`UsageError` from a command's checks of its options). A command that needs
 an optional extra checks for it first (:func:`o3d_spectral._extras.require_modules`); a
-missing module of an extra is reported on one line naming the extra, exit code 1.
+missing module of an extra is reported on one line naming the extra, exit code 1. Stops
+(:mod:`~o3d_spectral.cli.stops`): Ctrl-C 130 and SIGTERM 143 with one line, a reader of
+the output gone 141 quietly.
 
 Standard output is the command's result only: while a command runs, whatever C++ code
 writes to file descriptor 1 (Open3D's log) goes to stderr, as do the package's log
@@ -27,7 +29,7 @@ import platform
 import sys
 import time
 import traceback
-from importlib import metadata
+from typing import NoReturn
 
 from o3d_spectral._extras import MissingExtraError, missing_extra
 from o3d_spectral.cli._output import (
@@ -36,9 +38,17 @@ from o3d_spectral.cli._output import (
     results,
     stdout_for_results_only,
 )
+from o3d_spectral.cli.stops import (
+    exit_after_stop,
+    quiet_broken_pipe,
+    signals_held,
+    sigterm_as_interrupt,
+    stop_cause,
+    stop_status,
+)
 
-__all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "results",
-           "show_progress", "versions"]
+__all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "program",
+           "results", "show_progress", "versions"]
 
 COMMANDS = ("register", "demo", "suite", "eval", "report", "convert", "servo", "reconstruct")
 log = logging.getLogger(__name__)  # "o3d_spectral.cli", under the package logger
@@ -52,6 +62,8 @@ class UsageError(ValueError):
 
 def versions() -> str:
     """``o3d-spectral X.Y.Z`` and the versions of its main dependencies, one per line."""
+    from importlib import metadata
+
     import o3d_spectral
 
     lines = [f"o3d-spectral {o3d_spectral.__version__}"]
@@ -97,11 +109,20 @@ class HelpFormatter(argparse.HelpFormatter):
         return super()._fill_text(text, width, indent)
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, whose ``--help`` reports a failed write (argparse drops it: the
+    help lost in a closed pipe, and status 0)."""
+
+    def print_help(self, file=None) -> None:
+        (file or sys.stdout).write(self.format_help())
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="o3d-spectral",
         description="Spectral point-cloud registration and 3D visual servoing for Open3D.",
-        epilog="exit codes: 0 success, 1 the command failed, 2 a usage error",
+        epilog="exit codes: 0 success, 1 the command failed, 2 a usage error, 130 / 143 "
+        "stopped by Ctrl-C / SIGTERM, 141 the reader of the output went away",
         formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action=_VersionAction,
@@ -165,6 +186,8 @@ def _flush_results() -> None:
     """Flush the results (a full disk fails here, named, not at exit in a traceback)."""
     try:
         results().flush()
+    except BrokenPipeError:
+        raise  # the reader went away: a quiet end, not an error
     except OSError as error:
         raise OSError(f"could not write the results to the standard output "
                       f"({error.strerror or error})") from None
@@ -178,11 +201,53 @@ def status_label(args: argparse.Namespace) -> str | None:
     return None
 
 
+def program() -> NoReturn:
+    """The ``o3d-spectral`` program (its script, ``python -m o3d_spectral.cli``):
+    :func:`main` on ``sys.argv``, then exit with its status (at once after a stop:
+    :func:`~o3d_spectral.cli.stops.exit_after_stop`)."""
+    code = main()
+    exit_after_stop(code)
+    sys.exit(code)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run ``o3d-spectral`` with ``argv`` (default ``sys.argv[1:]``); the exit code."""
+    """Run ``o3d-spectral`` with ``argv`` (default ``sys.argv[1:]``); the exit code.
+
+    Ctrl-C and SIGTERM end it cleanly at any moment (:mod:`~o3d_spectral.cli.stops`): one
+    line, status 130 or 143; a reader of the standard output that goes away ends it
+    quietly with status 141; a closed standard output is refused at once (status 1).
+    """
+    with sigterm_as_interrupt():
+        try:
+            return _main(argv)
+        except KeyboardInterrupt as stop:  # before a command started (parsing, imports)
+            return _stopped(None, stop)
+        except ImportError as error:  # a stop while Open3D's C extension was imported
+            stop = stop_cause(error)
+            if stop is None:
+                raise
+            return _stopped(None, stop)
+        except BrokenPipeError:  # --help or --version into a pipe closed early
+            return quiet_broken_pipe()
+
+
+def _stopped(command: str | None, stop: KeyboardInterrupt) -> int:
+    word, code = stop_status(stop)
+    print(f"o3d-spectral{f' {command}' if command else ''}: {word}", file=sys.stderr)
+    return code
+
+
+def _main(argv: list[str] | None) -> int:
+    if sys.stdout is None:  # started with the standard output closed (>&-)
+        print("o3d-spectral: error: the standard output is closed: nowhere to write the "
+              "results (redirect it to a file or to /dev/null)", file=sys.stderr)
+        return 1
     try:
-        args = build_parser().parse_args(argv)
+        with signals_held():  # the commands' modules import NumPy: a stop waits for it
+            parser = build_parser()
+        args = parser.parse_args(argv)
     except SystemExit as exit_:  # --help, --version, or a usage error argparse printed
+        sys.stdout.flush()  # a broken pipe shows here, not in the interpreter's last flush
         return exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
     with stdout_for_results_only(), logging_to_stderr(
         _log_level(args), open3d=getattr(args, "open3d", True), status=status_label(args)
@@ -194,10 +259,12 @@ def main(argv: list[str] | None = None) -> int:
             _flush_results()
         except UsageError as error:
             return _fail(args, error, 2)
-        except KeyboardInterrupt:
-            print(f"o3d-spectral {args.command}: interrupted", file=sys.stderr)
-            return 130
+        except KeyboardInterrupt as stop:
+            return _stopped(args.command, stop)
+        except BrokenPipeError:
+            raise  # answered once the standard output is restored
         except Exception as error:
-            return _fail(args, error, 1)
+            stop = stop_cause(error)
+            return _fail(args, error, 1) if stop is None else _stopped(args.command, stop)
         log.info("%s done in %.1f s", args.command, time.perf_counter() - start)
         return code

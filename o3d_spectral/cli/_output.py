@@ -17,6 +17,8 @@ import time
 from collections.abc import Iterator
 from typing import TextIO
 
+from o3d_spectral.cli.stops import import_whole
+
 LOG_FORMAT = "o3d-spectral: %(levelname)s: %(message)s"
 #: Seconds a command runs before its status line appears, and between redraws.
 STATUS_DELAY, STATUS_INTERVAL = 2.0, 0.5
@@ -261,7 +263,7 @@ def logging_to_stderr(level: int, *, open3d: bool = True,
         with package_logging(level, status):
             yield
         return
-    import open3d as o3d
+    o3d = import_whole("open3d")  # a stop meanwhile is raised once it is loaded
 
     saved = o3d.utility.get_verbosity_level()
     verbosity = o3d.utility.VerbosityLevel

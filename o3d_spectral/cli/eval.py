@@ -195,6 +195,7 @@ def eval_command(args: argparse.Namespace) -> int:
     if args.cluster is not None:
         require_modules("eval --cluster", "distributed")
     from o3d_spectral.cli import UsageError, results, show_progress
+    from o3d_spectral.cli.stops import stop_status
     from o3d_spectral.harness import SuccessCriteria, run_eval
     from o3d_spectral.harness.report import run_summary
     from o3d_spectral.harness.selection import parse_shard
@@ -224,10 +225,11 @@ def eval_command(args: argparse.Namespace) -> int:
             plugins=args.plugin,
             progress=show_progress(args),
         )
-    except KeyboardInterrupt:  # Ctrl-C: a clean stop (the pool's workers are ended)
-        print(f"o3d-spectral eval: interrupted; the rows done so far stay in {args.out} "
+    except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the pool's workers are ended
+        word, code = stop_status(stop)
+        print(f"o3d-spectral eval: {word}; the rows done so far stay in {args.out} "
               "(run the same command again to resume)", file=sys.stderr)
-        return 130
+        return code
     if table.stat().st_size:  # else no row: a shard with nothing to run
         print(run_summary(args.out), file=results())
     print(f"wrote {table} in {time.perf_counter() - start:.1f} s", file=results())

@@ -30,7 +30,8 @@ from pathlib import Path
 
 from o3d_spectral import _extras
 
-__all__ = ["SINGLE_THREAD", "dask_cluster", "interrupt_flag", "local_pool", "require_distributed"]
+__all__ = ["SINGLE_THREAD", "StopFlag", "dask_cluster", "interrupt_flag", "local_pool",
+           "require_distributed"]
 
 SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 #: How often (seconds) a pool worker checks that the process that started it is alive.
@@ -106,28 +107,44 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
                 process.kill()
 
 
+class StopFlag(threading.Event):
+    """Set by a stop (Ctrl-C, or SIGTERM where the program raises on it); ``stop`` is the
+    exception it raised, to raise again where it can propagate."""
+
+    stop: KeyboardInterrupt = KeyboardInterrupt()
+
+
 @contextlib.contextmanager
-def interrupt_flag() -> Iterator[threading.Event]:
-    """An event set by Ctrl-C (SIGINT) while the block runs, beside Python's
-    ``KeyboardInterrupt``: Python drops an exception raised where it cannot propagate (a
-    finaliser, a weak-reference callback, running when the signal arrives), and the
-    interrupt must not be lost with it. Only where Ctrl-C raises ``KeyboardInterrupt``
-    (the main thread, Python's own handler); the handler is restored after."""
-    flag = threading.Event()
-    main = threading.current_thread() is threading.main_thread()
-    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+def interrupt_flag() -> Iterator[StopFlag]:
+    """A flag set by Ctrl-C (SIGINT) or SIGTERM while the block runs, beside the exception
+    their handlers raise (``KeyboardInterrupt``, or the CLI's ``Terminated``): Python
+    drops an exception raised where it cannot propagate (a finaliser, a weak-reference
+    callback, running when the signal arrives), and the stop must not be lost with it.
+    Only for a signal whose handler is Python code, in the main thread; the handlers are
+    restored after."""
+    flag = StopFlag()
+    if threading.current_thread() is not threading.main_thread():
         yield flag
         return
+    previous = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)}
 
-    def interrupted(signum, frame):
-        flag.set()
-        raise KeyboardInterrupt
+    def stopped(signum, frame):
+        try:
+            previous[signum](signum, frame)
+        except KeyboardInterrupt as stop:
+            flag.stop = stop
+            flag.set()
+            raise
 
-    signal.signal(signal.SIGINT, interrupted)
+    for number, handler in previous.items():
+        if callable(handler):
+            signal.signal(number, stopped)
     try:
         yield flag
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for number, handler in previous.items():
+            if callable(handler):
+                signal.signal(number, handler)
 
 
 @contextlib.contextmanager
@@ -153,7 +170,7 @@ def local_pool(
         while pending:
             done, pending = wait(pending, timeout=INTERRUPT_POLL, return_when=FIRST_COMPLETED)
             if interrupt.is_set():
-                raise KeyboardInterrupt
+                raise interrupt.stop
             for future in done:
                 yield future.result()
 
