@@ -1,5 +1,5 @@
-"""Evaluation past one process: Dask clusters, shards, concurrent sessions in one
-run folder, older run folders, and the peers from other packages."""
+"""Evaluation past one process: Dask clusters, shards, older run folders, and the peers
+from other packages (two runs into one folder: test_stops.py)."""
 
 import gc
 import json
@@ -177,26 +177,6 @@ def test_two_shards_into_one_folder_give_the_unsharded_rows(suite_dir, pool_run,
     config = read_config(tmp_path)
     assert [s["shard"] for s in config["sessions"]] == ["0/2", "1/2"]
     assert len(result_files(tmp_path)) == 2
-
-
-@pytest.mark.slow
-def test_concurrent_sessions_keep_every_row_and_setting(suite_dir, tmp_path):
-    """Two eval processes write one folder at the same time."""
-    root = str(Path(o3d_spectral.__file__).resolve().parents[1])
-    env = os.environ | {"PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
-    command = [sys.executable, "-m", "o3d_spectral.cli", "eval", "--suite", str(suite_dir),
-               "--out", str(tmp_path), "--quiet", "--limit", "2"]
-    runs = [
-        subprocess.Popen([*command, "--methods", method], env=env, stdout=subprocess.DEVNULL)
-        for method in METHODS
-    ]
-    assert [run.wait(timeout=300) for run in runs] == [0, 0]
-    config = read_config(tmp_path)
-    assert len(list((tmp_path / SESSIONS_DIR).glob("*.json"))) == 2
-    assert sorted(m for s in config["sessions"] for m in s["method_settings"]) == sorted(METHODS)
-    assert sorted(config["methods"]) == sorted(METHODS)
-    frame = load_results(tmp_path)
-    assert len(frame) == 4 and set(frame["method"]) == set(METHODS)
 
 
 @pytest.mark.slow

@@ -133,6 +133,29 @@ def test_reconstruct_writes_the_cloud_the_poses_and_a_picture(tmp_path, capsys):
     merged = o3d.io.read_point_cloud(str(out / "merged.ply"))
     assert len(merged.points) > max(len(c.voxel_down_sample(0.004).points) for c in clouds)
     assert (out / "merged.png").read_bytes()[:4] == b"\x89PNG"
+    _a_stopped_run_leaves_no_set_that_looks_complete(paths, out, capsys)
+
+
+def _a_stopped_run_leaves_no_set_that_looks_complete(paths, out, capsys):
+    """A second run into ``out`` stopped midway: the first run's outputs wait aside."""
+    from o3d_spectral.cli import reconstruct
+    from o3d_spectral.cli.stops import Terminated
+
+    first = (out / "poses.json").read_text()
+
+    def stopped(args):
+        raise Terminated
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(reconstruct, "_reconstruct", stopped)
+        assert main(["reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
+                     str(out)]) == 143
+    assert "o3d-spectral reconstruct: terminated" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["previous_run"]
+    assert (out / "previous_run" / "poses.json").read_text() == first
+    assert main(["-q", "reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
+                 str(out)]) == 0  # complete again: the set aside is gone
+    assert sorted(p.name for p in out.iterdir()) == ["merged.ply", "merged.png", "poses.json"]
 
 
 @pytest.mark.parametrize("arguments", [

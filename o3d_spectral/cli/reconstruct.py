@@ -6,7 +6,10 @@ Registers the scans into the first one's frame with
 ``poses.json`` (each file's 4x4 pose, the unconnected and the doubtful files, the pairs)
 and ``merged.png`` (the merged cloud coloured by scan, seen along its principal axes).
 The three are written to temporary files in ``DIR`` and renamed once all are written:
-a failed run leaves none of them half written. Scans the registration refuses before
+a failed run leaves none of them half written; a previous run's three wait in
+``DIR/previous_run/`` until the new ones are complete, so that a run interrupted leaves
+no set that looks complete. One run at a time writes ``DIR``
+(:mod:`~o3d_spectral.io.folder_lock`). Scans the registration refuses before
 any work (in different units, too few points) are a usage error, named by file (exit 2).
 """
 
@@ -17,6 +20,7 @@ import json
 import logging
 import os
 import re
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -25,6 +29,8 @@ import numpy as np
 EXAMPLE = ("example: o3d-spectral reconstruct scan_*.ply --voxel-size 0.005 --out model "
            "--json")
 OUTPUTS = ("merged.ply", "poses.json", "merged.png")
+#: Where a new run moves the outputs of the previous one until it has written its own.
+PREVIOUS = "previous_run"
 #: Points drawn in the picture at most (a random, seeded subset beyond).
 PICTURE_POINTS = 30_000
 
@@ -205,12 +211,38 @@ def _write_all(out: Path, writers: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import o3d_spectral
     from o3d_spectral._extras import require_modules
-    from o3d_spectral.cli import UsageError, results
+    from o3d_spectral.io.folder_lock import folder_lock
 
     _check_args(args)
     require_modules("this command", "matplotlib")
+    with folder_lock(args.out, "o3d-spectral reconstruct"):  # one run at a time in --out
+        _set_aside(args.out)
+        _reconstruct(args)
+        shutil.rmtree(args.out / PREVIOUS, ignore_errors=True)  # the new set is complete
+    return 0
+
+
+def _set_aside(out: Path) -> None:
+    """The outputs of a previous run in ``out`` moved into ``out/previous_run/`` (replacing
+    what an older run left there), so that an interrupted run never leaves a set that
+    looks complete."""
+    found = [name for name in OUTPUTS if (out / name).exists()]
+    if not found:
+        return
+    shutil.rmtree(out / PREVIOUS, ignore_errors=True)
+    (out / PREVIOUS).mkdir()
+    for name in found:
+        os.replace(out / name, out / PREVIOUS / name)
+    log.warning("moved the previous run's %s to %s until this one is complete",
+                ", ".join(found), out / PREVIOUS)
+
+
+def _reconstruct(args: argparse.Namespace) -> None:
+    """Register the scans, write the outputs, print the summary."""
+    import o3d_spectral
+    from o3d_spectral.cli import UsageError, results
+
     clouds = [_read(path) for path in args.scans]
     option = o3d_spectral.MultiwayOption(workers=args.workers, progress=_progress(args))
     try:
@@ -240,4 +272,3 @@ def run(args: argparse.Namespace) -> int:
         for k in result.doubtful:
             print(f"doubtful (placed through pairs that may be wrong): {args.scans[k]}",
                   file=results())
-    return 0

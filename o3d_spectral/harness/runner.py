@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime
 import functools
 import importlib
+import json
 import time
 import zlib
 from collections.abc import Iterator, Sequence
@@ -51,6 +52,7 @@ from o3d_spectral.harness.records import (
 )
 from o3d_spectral.harness.selection import in_tuning_split, parse_shard, selected_indices
 from o3d_spectral.harness.sets import open_set, set_spec
+from o3d_spectral.io.folder_lock import folder_lock
 from o3d_spectral.synthetic.suite import Suite, load_suite
 
 __all__ = ["run_eval", "task_seed"]
@@ -313,9 +315,10 @@ def run_eval(
     """Run ``methods`` on the instances of ``suites``; results go to ``out_dir``.
 
     Pairs (instance, method) already in ``out_dir`` are skipped, so calling it again
-    resumes an interrupted run, or adds methods or suites to a finished one. Several calls
-    (processes, machines) may write one ``out_dir`` at once: each session writes its own
-    files (:mod:`~o3d_spectral.harness.records`).
+    resumes an interrupted run, or adds methods or suites to a finished one. Another call
+    writing ``out_dir`` meanwhile is refused (``FolderBusyError``,
+    :mod:`~o3d_spectral.io.folder_lock`) but for the shards ``i/n`` of one run with the
+    same settings, each session writing its own files (:mod:`~o3d_spectral.harness.records`).
 
     Parameters
     ----------
@@ -356,8 +359,7 @@ def run_eval(
     plugins : sequence of str, optional
         Modules imported first (in every worker too), e.g. one registering more methods.
     progress : bool, optional
-        Show a tqdm progress bar, when stderr is a terminal (its frames would fill a log
-        or a pipe).
+        Show a tqdm progress bar, when stderr is a terminal (not in a log or a pipe).
 
     Returns
     -------
@@ -372,27 +374,27 @@ def run_eval(
     )
     criteria = criteria or SuccessCriteria()
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     settings = {"voxel_size": voxel_size, "seed": seed, "criteria": asdict(criteria)}
-    entry = prepare_session(out, loaded, settings, methods)
-    tasks = _tasks(
-        loaded, methods, done_keys(out), seed=seed, voxel_size=voxel_size, criteria=criteria,
-        selection=selection,
-    )
-    record = {
-        "id": new_session_id(),
-        "started": datetime.datetime.now().isoformat(timespec="seconds"),
-        "seconds": 0.0,
-        "registrations": 0,
-        "planned": len(tasks),
-        "complete": not tasks,
-        "executor": cluster or "local pool",
-        "workers": workers,
-        "selection": {"limit": limit, "sample": sample},
-        "shard": None if shard is None else f"{shard[0]}/{shard[1]}",
-    }
-    _session(
-        out, entry, tasks, record=record, cluster=cluster, plugins=tuple(plugins),
-        progress=progress,
-    )
-    return write_results_table(out)
+    part = None if shard is None else f"{shard[0]}/{shard[1]}"  # the shards of one run share
+    shards = None if shard is None else json.dumps({"of": shard[1], **settings}, sort_keys=True)
+    with folder_lock(out, "o3d-spectral eval", group=shards, part=part):
+        entry = prepare_session(out, loaded, settings, methods)
+        tasks = _tasks(loaded, methods, done_keys(out), seed=seed, voxel_size=voxel_size,
+                       criteria=criteria, selection=selection)
+        record = {
+            "id": new_session_id(),
+            "started": datetime.datetime.now().isoformat(timespec="seconds"),
+            "seconds": 0.0,
+            "registrations": 0,
+            "planned": len(tasks),
+            "complete": not tasks,
+            "executor": cluster or "local pool",
+            "workers": workers,
+            "selection": {"limit": limit, "sample": sample},
+            "shard": part,
+        }
+        _session(
+            out, entry, tasks, record=record, cluster=cluster, plugins=tuple(plugins),
+            progress=progress,
+        )
+        return write_results_table(out)

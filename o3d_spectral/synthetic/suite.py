@@ -20,6 +20,7 @@ import open3d as o3d
 
 from o3d_spectral import _extras
 from o3d_spectral.io.files import atomic_write_cloud, check_cloud_file, check_finite
+from o3d_spectral.io.folder_lock import folder_lock, foreign_entries
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
 from o3d_spectral.synthetic.models import model_names
@@ -126,17 +127,13 @@ def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -
     return entries
 
 
-def _empty_folder(out_dir: str | Path) -> Path:
-    """``out_dir`` created, or checked to be an empty folder (``ValueError`` naming it)."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"out_dir {str(out)!r} is a file, not a folder: choose a folder")
-    if out.is_dir() and any(out.iterdir()):
+def _check_empty(out: Path) -> None:
+    """``ValueError`` naming ``out`` unless it is an empty folder (but for the claim of
+    the run checking it: :mod:`~o3d_spectral.io.folder_lock`)."""
+    if foreign_entries(out):
         raise ValueError(
             f"out_dir {str(out)!r} is not empty: write the suite to a new folder (or remove "
             "this one first)")
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def make_suite(
@@ -180,10 +177,14 @@ def make_suite(
     """
     _check_suite_arguments(condition, n, seed, workers)
     options = SceneOptions() if options is None else options
-    out = _empty_folder(out_dir)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out_dir {str(out)!r} is a file, not a folder: choose a folder")
     names = model_names()
     tasks = [(condition, names[i % len(names)], seed, i, options, str(out)) for i in range(n)]
-    entries = _build_all(tasks, workers, desc=f"{condition} suite", progress=progress)
+    with folder_lock(out, "o3d-spectral make-suite"):  # one suite at a time into a folder
+        _check_empty(out)
+        entries = _build_all(tasks, workers, desc=f"{condition} suite", progress=progress)
     manifest = {
         "format": FORMAT,
         "version": VERSION,
