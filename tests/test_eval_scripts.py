@@ -53,6 +53,7 @@ SCRIPTS = (
     "confidence_precision.py",
     "derive_real_data.py",
     "failure_signal.py",
+    "fuzz_cli.py",
     "handle_visibility.py",
     "recall_generators.py",
     "run_benchmark.py",
@@ -147,6 +148,15 @@ def test_handle_visibility(tmp_path):
     assert all(min(shares[angle, elevation]) <= 0.005 for angle in (30, 45, 60)
                for elevation in (20, 45))
     assert min(shares[120, 20]) > 0.01
+
+
+def test_fuzz_cli(tmp_path):
+    """The stream probes, and SIGTERM / SIGINT to ``convert`` once it has started."""
+    printed = run("fuzz_cli.py", "--probes", "streams", "signals", "--commands", "convert",
+                  "--moments", 0.6, "--out", tmp_path / "fuzz", cwd=tmp_path)
+    lines = printed.strip().splitlines()
+    assert len(lines) == 7 and all(line.startswith("ok ") for line in lines[:-1]), printed
+    assert lines[-1].startswith("6 of 6 probes held")
 
 
 def test_bench_correlation(tmp_path):
