@@ -175,12 +175,13 @@ def check_voxel_size(value: object, name: str = "voxel_size") -> float:
 MAX_VOXELS_ACROSS = 2**20
 
 
-def check_voxel_span(voxel_size: float, extent: float, name: str) -> None:
-    """``ValueError`` naming ``voxel_size`` when the cloud ``name``, ``extent`` metres
-    across, would span over :data:`MAX_VOXELS_ACROSS` voxels of it."""
+def check_voxel_span(voxel_size: float, extent: float, name: str,
+                     setting: str = "voxel_size") -> None:
+    """``ValueError`` naming ``setting`` (``voxel_size``) when the cloud ``name``,
+    ``extent`` metres across, would span over :data:`MAX_VOXELS_ACROSS` voxels of it."""
     if extent > MAX_VOXELS_ACROSS * voxel_size:
         raise ValueError(
-            f"voxel_size={voxel_size:g} m is too small: {name} spans {extent:.4g} m, over "
+            f"{setting}={voxel_size:g} m is too small: {name} spans {extent:.4g} m, over "
             f"{MAX_VOXELS_ACROSS} voxels (no voxel grid could hold it; check the clouds "
             "are in metres)"
         )

@@ -56,6 +56,8 @@ def prepared_cloud(
             "smaller voxel_size (check the clouds are in metres)"
         )
     check_voxel_span(voxel_size, extent, name)
+    if egi_voxel_size is not None:
+        check_voxel_span(egi_voxel_size, extent, name, "egi_voxel_size")
     return prepare_arrays(
         arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
         camera_location=camera_location, origin=origin, name=name,

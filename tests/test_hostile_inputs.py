@@ -384,6 +384,28 @@ def test_an_init_beyond_any_grid_is_refused_by_name(shift):
         o3d_spectral.registration_spectral(source, source, VOXEL, init)
 
 
+@pytest.mark.parametrize("option, name", [
+    (dict(peak_width=1e300), "peak_width"), (dict(peak_width=2**62), "peak_width"),
+    (dict(egi_voxel_size=1e-300), "egi_voxel_size")])
+def test_an_option_finite_but_beyond_any_grid_is_refused_by_name(option, name):
+    source = _small_pair()
+    with pytest.raises(ValueError, match=rf"^{name}="):
+        o3d_spectral.registration_spectral(
+            source, source, VOXEL, np.eye(4), option=SpectralRegistrationOption(**option))
+
+
+def test_counts_beyond_what_exists_are_what_exists():
+    """More hypotheses than the SO(3) grid has peaks, a polish cell finer than floats
+    resolve: the call runs, with every peak, with every point."""
+    source = _small_pair()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = o3d_spectral.registration_spectral_global(
+            source, source, VOXEL, search=GlobalSearchOption(hypotheses=2**62),
+            refinement=RefinementOption(cell=1e-300))
+    assert_rigid(result.transformation)
+
+
 def test_near_rigid_init_is_made_rigid_and_far_from_rigid_refused():
     from scipy.spatial.transform import Rotation
 

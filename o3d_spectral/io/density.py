@@ -41,7 +41,10 @@ def first_per_cell(points: NDArray[np.float64], cell: float) -> NDArray[np.int64
     metres: actual points, so that indices into the subset map back to the cloud."""
     if len(points) == 0:
         return np.zeros(0, dtype=np.int64)
-    keys = np.floor((points - bounds(points)[0]) / cell).astype(np.int64)
+    lower, upper = bounds(points)
+    if not np.max(upper - lower) < MAX_CELLS * cell:  # cells finer than int64 keys hold
+        return np.sort(np.unique(points, axis=0, return_index=True)[1])  # distinct points
+    keys = np.floor((points - lower) / cell).astype(np.int64)
     span = bounds(keys)[1] + 1
     if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one int64 per cell
         flat = keys[:, 0] + span[0] * (keys[:, 1] + span[1] * keys[:, 2])

@@ -280,7 +280,7 @@ def peak_indices(
     order = np.argsort(v[is_peak])[::-1]
     indices = np.argwhere(is_peak)[order]
     chosen: list[tuple[tuple[int, int, int], float]] = []
-    kept = np.empty((count, 3, 3))  # the chosen rotations, for one test against them all
+    kept = np.empty((min(count, len(indices)), 3, 3))  # the chosen, tested against at once
     for index in map(tuple, indices.tolist()):
         R = grid.rotation(index)
         traces = np.einsum("ij,kij->k", R, kept[: len(chosen)])  # trace(R^T other)

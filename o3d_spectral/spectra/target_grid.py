@@ -92,6 +92,10 @@ class TargetGrid:
         self.lattice = Lattice(np.floor(lower / voxel_size) * voxel_size, voxel_size)
         self.box = self.lattice.box_around(lower, upper, margin=2)
         check_memory(self.box.shape, max_memory, "target")
+        if not peak_width <= max(self.box.shape):  # the window would keep the mean alone
+            raise ValueError(f"peak_width={peak_width:g} voxels is wider than the target's "
+                             f"grid ({max(self.box.shape)} voxels across): the window would "
+                             "blur the phase correlation's peak away")
         self._points = points
         self.radius = extent(points)[1]
         grid = splat(points, self.box, mode=weighting)
