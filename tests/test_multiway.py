@@ -147,7 +147,7 @@ def _a_stopped_run_leaves_no_set_that_looks_complete(paths, out, capsys):
         raise Terminated
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(reconstruct, "_reconstruct", stopped)
+        patch.setattr(reconstruct, "register_and_write", stopped)
         assert main(["reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
                      str(out)]) == 143
     assert "o3d-spectral reconstruct: terminated" in capsys.readouterr().err

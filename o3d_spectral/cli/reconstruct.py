@@ -218,7 +218,7 @@ def run(args: argparse.Namespace) -> int:
     require_modules("this command", "matplotlib")
     with folder_lock(args.out, "o3d-spectral reconstruct"):  # one run at a time in --out
         _set_aside(args.out)
-        _reconstruct(args)
+        register_and_write(args)
         shutil.rmtree(args.out / PREVIOUS, ignore_errors=True)  # the new set is complete
     return 0
 
@@ -238,7 +238,7 @@ def _set_aside(out: Path) -> None:
                 ", ".join(found), out / PREVIOUS)
 
 
-def _reconstruct(args: argparse.Namespace) -> None:
+def register_and_write(args: argparse.Namespace) -> None:
     """Register the scans, write the outputs, print the summary."""
     import o3d_spectral
     from o3d_spectral.cli import UsageError, results
