@@ -12,6 +12,7 @@ once they are loaded.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import importlib
 import logging
@@ -101,13 +102,16 @@ def stop_cause(error: BaseException) -> KeyboardInterrupt | None:
 
 
 def exit_after_stop(code: int) -> None:
-    """End the process at once with ``code`` when it is a stop's status (130, 143), the
-    standard streams and the log flushed: an Open3D call cut short by the stop leaves an
-    allocation behind, and Open3D's leak check at the interpreter's exit would print its
-    statistics to the standard output and turn the status into 1. Other codes return."""
+    """End the process with ``code`` when it is a stop's status (130, 143) once Python's
+    exit handlers have run (multiprocessing's clean-up of the pool's semaphores, the
+    log's flush) but before the extension modules are torn down: an Open3D call cut
+    short by the stop leaves an allocation behind, and Open3D's leak check in that
+    teardown would print its statistics to the standard output and turn the status into
+    1. Other codes return."""
     if code not in (128 + signal.SIGINT, 128 + signal.SIGTERM):
         return
     logging.shutdown()
+    atexit._run_exitfuncs()  # what sys.exit would run, short of the extensions' teardown
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError, AttributeError):
             stream.flush()
