@@ -2,9 +2,10 @@
 and one error, :class:`MissingExtraError`, that names the extra a missing module needs.
 
 The core install registers clouds and runs the demo; the extras add the evaluation
-harness (``harness``), the servoing simulation (``servo``), Dask clusters (``cluster``) and
-the peer methods (``peers``). A command that needs an extra checks for it before it
-starts, with :func:`require_modules`, and the command line prints the error on one line.
+harness (``harness``), the servoing simulation (``servo``), Dask clusters (``cluster``),
+the peer methods (``peers``) and the search's correlations on a GPU (``gpu``: CuPy). A
+command that needs an extra checks for it before it starts, with :func:`require_modules`,
+and the command line prints the error on one line.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "servo": ("pybullet", "pybullet_data"),
     "cluster": ("dask", "distributed"),
     "peers": ("kiss_matcher", "small_gicp"),
+    "gpu": ("cupy", "cupyx"),
 }
 
 

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from . import centring
 from ._checks import check_instance, check_voxel_size
+from .correlation.device import Device, parse_device
 from .io.cloud import CloudArrays, as_arrays
 from .io.density import read_at_voxels
 from .options import CloudOption, SpectralRegistrationOption
@@ -61,21 +62,28 @@ class PreparedTarget:
     offset: NDArray[np.float64] | None
     stepper: SpectralStepper
 
+    @property
+    def device(self) -> Device:
+        """Where the search's correlations against it run (its spectra live there)."""
+        return self.stepper.device
+
     def check(
         self, voxel_size: float, option: SpectralRegistrationOption | None,
-        cloud: CloudOption | None,
+        cloud: CloudOption | None, device: object | None = None,
     ) -> None:
         """``ValueError`` naming ``target`` when a call's settings differ from those it
-        was prepared with."""
+        was prepared with (a call that names no device uses the target's)."""
         asked = {"voxel_size": float(voxel_size),
                  "option": option or SpectralRegistrationOption(),
                  "cloud": cloud or CloudOption()}
+        if device is not None:
+            asked["device"] = parse_device(device)
         check_prepared_with("target", self, asked)
 
 
 def prepare_target(
     target: object, voxel_size: float, option: SpectralRegistrationOption | None = None, *,
-    cloud: CloudOption | None = None,
+    cloud: CloudOption | None = None, device: object | None = None,
 ) -> PreparedTarget:
     """Prepare ``target`` once for many registrations at ``voxel_size``.
 
@@ -89,6 +97,9 @@ def prepare_target(
         The representation; the calls must use the same.
     cloud : CloudOption, optional
         Normal estimation and sensor positions; the calls must use the same.
+    device : str or open3d.core.Device, optional
+        Where the search's correlations against it run (``"CPU:0"``, ``"CUDA:0"``); the
+        calls use it.
 
     Returns
     -------
@@ -113,5 +124,5 @@ def prepare_target(
         centred = centring.centred_arrays(read, c)
         centred_cloud, origin = centring.centred_option(cloud, c), -c
     stepper = SpectralStepper(centred, voxel_size, option=option, cloud=centred_cloud,
-                              frame_origin=origin)
+                              frame_origin=origin, device=device)
     return PreparedTarget(arrays, float(voxel_size), option, cloud, c, stepper)

@@ -150,6 +150,7 @@ def registration_spectral_global(
     cloud: CloudOption | None = None,
     refinement: RefinementOption | None = DEFAULT_REFINEMENT,
     max_correspondence_distance: float | None = None,
+    device: object | None = None,
 ) -> SpectralRegistrationResult:
     """Align ``source`` to ``target`` from any relative pose (no initial guess).
 
@@ -206,6 +207,12 @@ def registration_spectral_global(
     max_correspondence_distance : float, optional
         Distance (metres) at which ``fitness``, ``inlier_rmse`` and ``correspondence_set``
         are measured; the voxel size when omitted.
+    device : str or open3d.core.Device, optional
+        Where the search's batched correlations run: ``"CPU:0"`` (the default; a
+        :class:`PreparedTarget`'s own device when it is the target) or ``"CUDA:0"``
+        (CuPy, the ``gpu`` extra), where ``search.rotations="auto"`` sweeps SO(3)
+        densely; the law and the polish run on the CPU. A CUDA device that is not usable
+        is refused, never replaced by the CPU.
 
     Returns
     -------
@@ -230,7 +237,7 @@ def registration_spectral_global(
     search.check_memory(option or SpectralRegistrationOption())  # before any work
     clock = StageClock()
     with clock.stage("prepare"):
-        run = start(source, target, voxel_size, np.eye(4), option, criteria, cloud)
+        run = start(source, target, voxel_size, np.eye(4), option, criteria, cloud, device)
     finder = GlobalSearch(run.stepper, run.moving, run.target, search, run.situation)
     with clock.stage("candidates"):
         ranking = finder.rank()

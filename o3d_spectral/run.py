@@ -109,9 +109,10 @@ def check_settings(**settings: object) -> None:
 def start(
     source: object, target: object, voxel_size: float, init: ArrayLike,
     option: SpectralRegistrationOption | None, criteria: SpectralConvergenceCriteria | None,
-    cloud: CloudOption | None,
+    cloud: CloudOption | None, device: object | None = None,
 ) -> Run:
-    """Check the arguments, compute the fixed spectra and prepare the moving cloud."""
+    """Check the arguments, compute the fixed spectra (their correlations on ``device``)
+    and prepare the moving cloud."""
     start = time.perf_counter()
     voxel_size = check_voxel_size(voxel_size)  # type first, then value, by name
     init = check_transformation(init)
@@ -121,7 +122,7 @@ def start(
         source = ready.arrays
     fixed = target if isinstance(target, PreparedTarget) else None
     if fixed is not None:
-        fixed.check(voxel_size, option, cloud)
+        fixed.check(voxel_size, option, cloud, device)
         target = fixed.arrays
     source, target = as_arrays(source, "source"), as_arrays(target, "target")  # once
     check_same_units(source.points, target.points)  # 50x apart: other units, or a scene to crop
@@ -137,7 +138,8 @@ def start(
         init, origin = centring.shifted(init, c), -c
         prepared = None if ready is None else ready.moved(c)
     stepper = (fixed.stepper if fixed is not None else
-               SpectralStepper(target, voxel_size, option=option, cloud=cloud, frame_origin=origin))
+               SpectralStepper(target, voxel_size, option=option, cloud=cloud,
+                               frame_origin=origin, device=device))
     moving = stepper.moving(source, "source", transformation=init, prepared=prepared)
     criteria = criteria or SpectralConvergenceCriteria()
     return Run(source, target, stepper, moving, init, criteria, start, c,

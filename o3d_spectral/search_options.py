@@ -62,8 +62,10 @@ class GlobalSearchOption:
         Between two single views: rotations spread evenly over SO(3), >= 0 (those that
         keep the two sensors within 110 degrees are tried), placed on a coarse grid, the
         best 16 kept as more candidates; 0 tries none.
-    rotations : {"adaptive", "dense"}, default "adaptive"
-        How SO(3) is swept where the first candidates are not confirmed. ``"adaptive"``:
+    rotations : {"auto", "adaptive", "dense"}, default "auto"
+        How SO(3) is swept where the first candidates are not confirmed. ``"auto"``:
+        ``"dense"`` where the correlations run on a GPU (the call's ``device``),
+        ``"adaptive"`` on the CPU (:meth:`sweep_on`). ``"adaptive"``:
         between two single views, ``sweep_rotations`` rotations ranked on a coarse grid;
         in no other case. ``"dense"``: between two single views and for an object
         against a view or model of it (not in a scene), ``dense_rotations`` even
@@ -125,7 +127,7 @@ class GlobalSearchOption:
     search_samples: int | None = None
     shell_hypotheses: int = 32
     sweep_rotations: int = 1000
-    rotations: str = "adaptive"
+    rotations: str = "auto"
     dense_rotations: int = 4608
     confirm: bool = True
     peak_ascent: bool = True
@@ -139,7 +141,7 @@ class GlobalSearchOption:
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
-        check_choice("rotations", self.rotations, ("adaptive", "dense"))
+        check_choice("rotations", self.rotations, ("auto", "adaptive", "dense"))
         check_int("dense_rotations", self.dense_rotations, low=1)
         check_int("second_opinions", self.second_opinions, low=0)
         check_int("turns", self.turns, low=0)
@@ -150,6 +152,14 @@ class GlobalSearchOption:
             check_bool(name, getattr(self, name))
         check_int("search_samples", self.search_samples, low=3, optional=True)
         check_int("workers", self.workers, low=1, optional=True)
+
+    def sweep_on(self, gpu: bool) -> str:
+        """The sweep of SO(3) on a device: ``rotations``, ``"auto"`` resolved (``"dense"``
+        on a GPU, where thousands of correlations take milliseconds; ``"adaptive"`` on
+        the CPU, where they take seconds)."""
+        if self.rotations != "auto":
+            return self.rotations
+        return "dense" if gpu else "adaptive"
 
     def check_memory(self, option: SpectralRegistrationOption) -> None:
         """``ValueError`` when the SO(3) correlation grid (complex, ``samples^3``, three

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ._checks import check_instance, check_voxel_size
+from .correlation.device import device_backend, parse_device
 from .evaluation import Evaluation
 from .io.cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
 from .io.normals import sensor_position
@@ -104,16 +105,21 @@ class SpectralStepper:
         sensor of a scan given in its sensor's frame (``target_viewpoint="auto"``, depth
         maps). The origin when omitted; the registration calls pass it when they centre
         clouds given far from the origin.
+    device : str or open3d.core.Device, optional
+        Where the global search's batched correlations run (``"CPU:0"``, ``"CUDA:0"``:
+        :mod:`o3d_spectral.correlation.device`); the law runs on the CPU.
     """
 
     def __init__(
         self, target: object, voxel_size: float, *,
         option: SpectralRegistrationOption | None = None, cloud: CloudOption | None = None,
-        frame_origin: ArrayLike | None = None,
+        frame_origin: ArrayLike | None = None, device: object | None = None,
     ) -> None:
         voxel_size = check_voxel_size(voxel_size)
         check_instance("option", option, SpectralRegistrationOption)
         check_instance("cloud", cloud, CloudOption)
+        self.device = parse_device(device)
+        self.backend = device_backend(self.device)  # before any work: CUDA not usable
         self.option = option or SpectralRegistrationOption()
         self.cloud = cloud or CloudOption()
         self.voxel_size = float(voxel_size)

@@ -72,6 +72,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="write the source moved by the result (" + ", ".join(SAVE_FORMATS)
                         + "); its folder is checked before the registration runs")
     parser.add_argument(
+        "--device", type=_device, default=None, metavar="CPU:0|CUDA:N",
+        help="where the global search's correlations run: CPU:0 (default) or CUDA:N (CuPy: "
+        "pip install 'o3d-spectral[gpu]'; the search is then dense)",
+    )
+    parser.add_argument(
         "--drop-nan", action="store_true",
         help="drop points with NaN or infinite coordinates (with a warning) instead of "
         "refusing the file",
@@ -89,6 +94,17 @@ def _voxel_size(text: str) -> float | str:
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"a number of metres, 'auto' or 'rule', got {text!r}") from None
+
+
+def _device(text: str) -> str:
+    """``--device``: a device's name, read as the calls read it (a typo is a usage
+    error); whether CUDA is usable is checked when the search starts."""
+    from o3d_spectral.correlation.device import parse_device
+
+    try:
+        return str(parse_device(text, "--device"))
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix("--device ")) from None
 
 
 @contextlib.contextmanager
@@ -347,7 +363,7 @@ def _registered(
     if trial:
         began = time.perf_counter()
         chosen = o3d_spectral.voxel_trial(source, target, option=option, criteria=criteria,
-                                          cloud=cloud)
+                                          cloud=cloud, device=args.device)
         result, voxel_size = chosen.result, chosen.voxel_size
         log.info("--voxel-size auto: %.4g m, confidence %.3f (tried %s; %.2f s in all)",
                  voxel_size, result.confidence,
@@ -355,5 +371,5 @@ def _registered(
                  time.perf_counter() - began)
         return result, voxel_size
     return o3d_spectral.registration_spectral_global(
-        source, target, voxel_size, option, criteria, cloud=cloud
+        source, target, voxel_size, option, criteria, cloud=cloud, device=args.device
     ), voxel_size

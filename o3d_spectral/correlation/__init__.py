@@ -12,7 +12,9 @@ backend:
   or by any library with NumPy's API (NumPy itself, CuPy on a GPU) over whole stacks;
 * :mod:`~o3d_spectral.correlation.batched`: :class:`BatchedCorrelation`, the fixed
   spectrum held on the backend and the peaks of a stack of rotations, and
-  :class:`TurnedCloud`, the moving cloud as the pipeline turns it.
+  :class:`TurnedCloud`, the moving cloud as the pipeline turns it;
+* :mod:`~o3d_spectral.correlation.device`: the backend for a device named in Open3D's
+  manner (``"CPU:0"``, ``"CUDA:0"``).
 
 Free of Open3D: it runs where only NumPy (and CuPy) are installed. Imports only its own
 modules, :mod:`o3d_spectral.spectra` and the package's helpers (``tests/test_layers.py``).
@@ -20,8 +22,9 @@ modules, :mod:`o3d_spectral.spectra` and the package's helpers (``tests/test_lay
 
 from .backend import ArrayBackend, Backend, CompiledBackend, array_backend
 from .batched import BatchedCorrelation, Peaks, TurnedCloud
+from .device import Device, device_backend, parse_device
 
 __all__ = [
-    "ArrayBackend", "Backend", "BatchedCorrelation", "CompiledBackend", "Peaks",
-    "TurnedCloud", "array_backend",
+    "ArrayBackend", "Backend", "BatchedCorrelation", "CompiledBackend", "Device", "Peaks",
+    "TurnedCloud", "array_backend", "device_backend", "parse_device",
 ]

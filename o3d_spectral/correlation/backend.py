@@ -23,9 +23,11 @@ holds them to 1e-5).
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from abc import ABC, abstractmethod
 from collections import OrderedDict
+from collections.abc import Iterator
 from types import ModuleType
 
 import numpy as np
@@ -33,13 +35,19 @@ from numpy.typing import NDArray
 
 from .turned import TurnedCloud
 
-__all__ = ["Backend", "CompiledBackend", "ArrayBackend", "array_backend", "BATCH_BYTES"]
+__all__ = ["Backend", "CompiledBackend", "ArrayBackend", "array_backend", "BATCH_BYTES",
+           "GPU_MEMORY_SHARE", "GPU_BYTES_PER_CELL"]
 
 #: Bytes of FFT grids (single precision, real) in one batch on the CPU: about a core's
 #: second-level cache. Past it a batch is slower per rotation (72x90x90 grids: 3.5 ms in
 #: batches of one, 6.7 ms in batches of 128); below it, batching saves the per-call
 #: overhead of small grids (32x36x36: 6 a batch).
 BATCH_BYTES = 2**20
+#: Share of a GPU's free memory one batch may take, and the bytes it takes a cell of the
+#: FFT grid: the moving grids (4), their half spectra (4), the whitened cross-power and
+#: its intermediates (3 x 4) and the correlations (4), with CuPy's FFT work area; the
+#: rest stays free for the plans and the other shape's batches.
+GPU_MEMORY_SHARE, GPU_BYTES_PER_CELL = 0.25, 32
 #: Workspaces a thread keeps (:class:`CompiledBackend`): one search correlates on two
 #: grids, its batches of two sizes each (the last batch is shorter).
 WORKSPACES = 8
@@ -127,6 +135,12 @@ class CompiledBackend(Backend):
     def __init__(self) -> None:
         self._local = threading.local()
 
+    def __getstate__(self) -> dict:
+        return {}  # the workspaces stay with their threads (a copy starts without)
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__()
+
     def _workspace(self, shape: tuple[int, ...], dtype: type) -> NDArray:
         """This thread's array of ``shape`` and ``dtype``, kept for its next batches (the
         last few shapes)."""
@@ -198,17 +212,61 @@ class ArrayBackend(Backend):
     """Any library with NumPy's API (``numpy``, ``cupy``), whole stacks at a time in
     plain array operations (see the module docstring).
 
+    On a GPU library the work runs on GPU ``device``; batches are sized to a share of its
+    free memory (:data:`GPU_MEMORY_SHARE`); its out-of-memory errors are raised as
+    ``MemoryError``, which :class:`~o3d_spectral.correlation.batched.BatchedCorrelation`
+    answers with smaller batches. The fixed spectrum stays on the device for the
+    correlation's life, and CuPy keeps the FFT plans of each shape (its plan cache).
+
     Parameters
     ----------
     xp : module, default numpy
         The array library.
+    device : int, optional
+        The GPU's index, for a GPU library (CuPy).
     """
 
-    def __init__(self, xp: ModuleType = np) -> None:
-        self.xp = xp
+    def __init__(self, xp: ModuleType = np, device: int | None = None) -> None:
+        self.xp, self.device = xp, device
         self.threaded = xp is np
+        self._scatter_add = xp.add.at if xp is np else _gpu_scatter_add(xp)
+        self._out_of_memory = (MemoryError, *_gpu_memory_errors(xp))
+
+    @contextlib.contextmanager
+    def _on_device(self) -> Iterator[None]:
+        """The block on :attr:`device` (a GPU library), its out-of-memory errors raised
+        as ``MemoryError``."""
+        context = (contextlib.nullcontext() if self.device is None
+                   else self.xp.cuda.Device(self.device))
+        try:
+            with context:
+                yield
+        except MemoryError:
+            raise
+        except self._out_of_memory as error:
+            raise MemoryError(f"out of GPU memory: {error}") from error
+
+    def asarray(self, values: NDArray, dtype: type) -> Array:
+        with self._on_device():
+            return self.xp.asarray(values, dtype=dtype)
+
+    def batch_size(self, shape: tuple[int, int, int]) -> int:
+        """Rotations together: a share of the GPU's free memory, at about
+        :data:`GPU_BYTES_PER_CELL` a cell of the FFT grid; on the CPU as
+        :meth:`Backend.batch_size`."""
+        if self.device is None:
+            return super().batch_size(shape)
+        with self._on_device():
+            free, _ = self.xp.cuda.Device(self.device).mem_info
+        return max(1, int(GPU_MEMORY_SHARE * free) // (GPU_BYTES_PER_CELL * int(np.prod(shape))))
 
     def splat(
+        self, cloud: TurnedCloud, rotations: NDArray[np.float64], grid: tuple[int, int, int]
+    ) -> Array:
+        with self._on_device():
+            return self._splat(cloud, rotations, grid)
+
+    def _splat(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], grid: tuple[int, int, int]
     ) -> Array:
         xp = self.xp
@@ -235,31 +293,53 @@ class ArrayBackend(Backend):
                 for axis, c in enumerate(corner):
                     weight = weight * (fraction[..., axis] if c else 1.0 - fraction[..., axis])
             flat = batch + (index[..., 0] * grid[1] + index[..., 1]) * grid[2] + index[..., 2]
-            xp.add.at(out, flat[inside], weight[inside].astype(xp.float32))
+            self._scatter_add(out, flat[inside], weight[inside].astype(xp.float32))
         if cloud.weighting == "binary":
             out = (out > 0).astype(xp.float32)
         return out.reshape(len(rotations), *grid)
 
     def forward(self, grids: Array, shape: tuple[int, int, int]) -> Array:
-        return self.xp.fft.rfftn(grids, s=shape, axes=(-3, -2, -1)).astype(self.xp.complex64)
+        with self._on_device():
+            spectra = self.xp.fft.rfftn(grids, s=shape, axes=(-3, -2, -1))
+            return spectra.astype(self.xp.complex64)
 
     def whiten(self, spectra: Array, fixed: Array, window: Array, eps: float) -> Array:
         xp = self.xp
-        cross = fixed * xp.conj(spectra)
-        top = xp.abs(spectra[:, 0, 0, 0]) * xp.abs(fixed[0, 0, 0])
-        floor = xp.maximum(eps * top, 1e-30)[:, None, None, None]
-        return cross * (window / xp.maximum(xp.abs(cross), floor))
+        with self._on_device():
+            cross = fixed * xp.conj(spectra)
+            top = xp.abs(spectra[:, 0, 0, 0]) * xp.abs(fixed[0, 0, 0])
+            floor = xp.maximum(eps * top, 1e-30)[:, None, None, None]
+            return cross * (window / xp.maximum(xp.abs(cross), floor))
 
     def inverse(self, spectra: Array, shape: tuple[int, int, int]) -> Array:
-        return self.xp.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1)).astype(self.xp.float32)
+        with self._on_device():
+            grids = self.xp.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1))
+            return grids.astype(self.xp.float32)
 
     def peaks(self, grids: Array) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         xp = self.xp
-        flat = grids.reshape(len(grids), -1)
-        index = xp.argmax(flat, axis=1)
-        values = xp.take_along_axis(flat, index[:, None], axis=1)[:, 0]
-        return (self.to_numpy(values).astype(np.float64),
-                self.to_numpy(index).astype(np.int64))
+        with self._on_device():
+            flat = grids.reshape(len(grids), -1)
+            index = xp.argmax(flat, axis=1)
+            values = xp.take_along_axis(flat, index[:, None], axis=1)[:, 0]
+            return (self.to_numpy(values).astype(np.float64),
+                    self.to_numpy(index).astype(np.int64))
+
+
+def _gpu_scatter_add(xp: ModuleType):
+    """``xp``'s unbuffered scatter-add (``np.add.at``'s): CuPy's ``cupyx.scatter_add``."""
+    import importlib
+
+    return importlib.import_module(f"{xp.__name__}x").scatter_add
+
+
+def _gpu_memory_errors(xp: ModuleType) -> tuple[type[BaseException], ...]:
+    """A GPU library's out-of-memory errors: CuPy's allocator's, and cuFFT's (a plan's
+    work area it cannot allocate)."""
+    cuda = getattr(xp, "cuda", None)
+    found = [getattr(getattr(cuda, "memory", None), "OutOfMemoryError", None),
+             getattr(getattr(cuda, "cufft", None), "CuFFTError", None)]
+    return tuple(error for error in found if isinstance(error, type))
 
 
 def array_backend(backend: Backend | None = None) -> Backend:

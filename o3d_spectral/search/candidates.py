@@ -184,7 +184,8 @@ def turned_correlation(
 ) -> tuple[BatchedCorrelation, TurnedCloud]:
     """The phase correlation of the moving cloud turned about its centroid against the
     whole fixed grid of ``factor`` voxels, batched over rotations
-    (:class:`o3d_spectral.correlation.BatchedCorrelation`, on ``backend``), and the moving
+    (:class:`o3d_spectral.correlation.BatchedCorrelation`, on ``backend``, by default the
+    stepper's, on its ``device``), and the moving
     cloud as it turns it: :meth:`o3d_spectral.SpectralStepper.locate`'s peak height for
     each rotation (to single precision's rounding), culled as
     :meth:`o3d_spectral.SpectralStepper.visible` culls."""
@@ -192,7 +193,7 @@ def turned_correlation(
     box = grid.moving_box(moving.radius, moving.centroid)
     correlation = BatchedCorrelation(
         grid.values, box.shape, shape=grid.fft_shape(grid.box, box, moving.radius),
-        sigma=grid.peak_width, backend=backend,
+        sigma=grid.peak_width, backend=backend or stepper.backend,
     )
     culled, voxel = stepper.sees(moving), grid.voxel_size
     cloud = TurnedCloud(

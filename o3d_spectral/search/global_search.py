@@ -101,14 +101,15 @@ class GlobalSearch:
     ) -> None:
         self.stepper, self.moving, self.target = stepper, moving, target
         self.option, self.situation = option, situation
+        self.rotations = option.sweep_on(stepper.device.gpu)  # "adaptive" or "dense"
         self.state = SearchState()
 
     @property
     def sweeps(self) -> bool:
         """Whether :meth:`rank` with ``sweep=True`` adds a sweep of SO(3): the dense
-        search outside a scene (``option.rotations == "dense"``); otherwise two scans, and
+        search outside a scene (:attr:`rotations` ``"dense"``); otherwise two scans, and
         ``option.sweep_rotations`` over 0."""
-        if self.option.rotations == "dense":
+        if self.rotations == "dense":
             return not self.situation.scene
         return self.situation.two_scans and self.option.sweep_rotations > 0
 
@@ -144,7 +145,7 @@ class GlobalSearch:
             self.state.candidates = candidates
         candidates, ranked_already = list(self.state.candidates), []
         if sweep and self.sweeps:
-            if option.rotations == "dense":
+            if self.rotations == "dense":
                 ranked_already = dense_candidates(stepper, moving, option.dense_rotations,
                                                   two_scans=self.situation.two_scans,
                                                   workers=option.workers)
@@ -212,7 +213,7 @@ class GlobalSearch:
         there: on a grid twice as coarse, a pose 15 degrees off outscored one 1.6 degrees
         off on the dragon scans 120 degrees apart), on a coarser one otherwise; apply it
         where :attr:`ascends`."""
-        span = PLACEMENT_SPAN if self.option.rotations == "dense" else PRESELECT_SPAN
+        span = PLACEMENT_SPAN if self.rotations == "dense" else PRESELECT_SPAN
         return best_ascent(self.stepper, self.moving, poses, self.option.workers, span)
 
     def closer_placed(self, ranking: Ranking, pose: NDArray[np.float64]) -> Confirmation | None:
