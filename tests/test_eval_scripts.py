@@ -11,6 +11,7 @@ test here fails :func:`test_every_eval_script_has_a_tiny_run`.
 from __future__ import annotations
 
 import csv
+import json
 import os
 import re
 import shutil
@@ -52,6 +53,7 @@ SCRIPTS = (
     "check_unchanged.py",
     "confidence_precision.py",
     "derive_real_data.py",
+    "device_check.py",
     "failure_signal.py",
     "fuzz_cli.py",
     "handle_visibility.py",
@@ -148,6 +150,22 @@ def test_handle_visibility(tmp_path):
     assert all(min(shares[angle, elevation]) <= 0.005 for angle in (30, 45, 60)
                for elevation in (20, 45))
     assert min(shares[120, 20]) > 0.01
+
+
+@pytest.mark.slow
+def test_device_check(tmp_path):
+    """Inputs prepared for a turntable pair, then the check with NumPy as the device's
+    library: the same peaks, and the times written."""
+    run("device_check.py", "prepare", "--groups", "turntable_135", "--repeats", 1, "--out",
+        tmp_path / "inputs", cwd=tmp_path)
+    with np.load(tmp_path / "inputs" / "turntable_135.npz") as data:
+        assert data["rotations"].shape[1:] == (3, 3) and len(data["rotations"]) > 1000
+    printed = run("device_check.py", "run", "--inputs", tmp_path / "inputs", "--out",
+                  tmp_path / "out", "--xp", "numpy", "--repeats", 1, cwd=tmp_path)
+    (row,) = json.loads((tmp_path / "out" / "results.json").read_text())["rows"]
+    assert row["max_relative_difference"] == 0.0 and row["same_first"]
+    assert row["sweep_s"] > 0 and row["ratio_to_lean"] > 0
+    assert "| turntable_135 (" in printed
 
 
 def test_fuzz_cli(tmp_path):

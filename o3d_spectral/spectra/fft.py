@@ -8,6 +8,9 @@ on timing: FFTW's quickly planned (``FFTW_ESTIMATE``) transforms are fast when e
 side is a power of two and often half as fast as pocketfft otherwise (one thread, single
 precision, cubes: 32^3 0.06 against 0.11 ms, 128^3 10 against 16 ms; 30^3 0.24 against
 0.10 ms, 90^3 7.5 against 3.1 ms); measured plans (``planning="measure"``) are FFTW's.
+
+SciPy is imported where a transform runs, not with the module: the batched correlation
+on a GPU (:mod:`o3d_spectral.correlation`) runs where only NumPy and CuPy are installed.
 """
 
 from __future__ import annotations
@@ -16,7 +19,6 @@ import threading
 from collections import OrderedDict
 
 import numpy as np
-import scipy.fft
 from numpy.typing import NDArray
 
 try:  # pragma: no cover - exercised by whichever backend is installed
@@ -39,6 +41,7 @@ def backend(shape: tuple[int, ...], planning: str = "estimate") -> str:
 
 def next_fast_len(n: int) -> int:
     """Smallest length ``>= n`` whose FFT is fast (factors 2, 3, 5, 7)."""
+    import scipy.fft
     return int(scipy.fft.next_fast_len(int(n), real=True))
 
 
@@ -96,12 +99,14 @@ class RealFFT3:
 
     def forward(self, grid: NDArray[np.floating]) -> NDArray[np.complexfloating]:
         """Spectrum of a real grid of shape :attr:`shape`."""
+        import scipy.fft
         if not self._fftw:
             return scipy.fft.rfftn(grid.astype(self.dtype, copy=False), workers=self.threads)
         return self._forward(grid)
 
     def inverse(self, spectrum: NDArray[np.complexfloating]) -> NDArray[np.floating]:
         """Real grid of shape :attr:`shape` from a half spectrum."""
+        import scipy.fft
         if not self._fftw:
             return scipy.fft.irfftn(spectrum, s=self.shape, workers=self.threads)
         return self._inverse(spectrum)
@@ -139,6 +144,7 @@ def padded_forward(
     returned (a workspace kept from call to call: no large array is allocated); a new
     array when omitted.
     """
+    import scipy.fft
     rows = scipy.fft.rfft(blocks, n=shape[2], axis=-1)
     if out is None:
         out = scipy.fft.fft(rows, n=shape[1], axis=-2)
@@ -158,6 +164,7 @@ def cropped_inverse(
     """The leading block of ``size`` of the real grid of ``shape`` whose half spectrum is
     ``spectrum`` (``irfftn(spectrum)[:size[0], :size[1], :size[2]]``), by pocketfft one
     axis at a time, computing only the lines the block needs."""
+    import scipy.fft
     out = scipy.fft.ifft(spectrum, axis=0)[: size[0]]
     out = scipy.fft.ifft(out, axis=1)[:, : size[1]]
     return scipy.fft.irfft(out, n=shape[2], axis=2)[:, :, : size[2]]
