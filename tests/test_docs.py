@@ -114,3 +114,13 @@ def test_every_stored_output_names_its_file_command_and_commit():
 
 def test_the_results_page_stays_a_reference():
     assert len((DOCS / "results.md").read_text().splitlines()) <= 300
+
+
+def test_the_constants_catalogue_is_current_and_every_constant_has_a_reason():
+    """``docs/constants.md`` is what ``tools/constants.py`` writes from the code now."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(ROOT / "tools" / "constants.py"), "--check"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout

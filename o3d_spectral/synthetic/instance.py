@@ -26,7 +26,6 @@ MAX_TRIES = 200
 BACKGROUND = -1
 
 _MODEL_SEED = 20240601  # fixed: a model's source cloud is the same in every suite
-MAX_TRIES = 200
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
+#: The manifest's format and its version, raised when a field changes meaning.
 FORMAT = "o3d-spectral-suite"
 VERSION = 1
 
