@@ -386,7 +386,8 @@ def test_an_init_beyond_any_grid_is_refused_by_name(shift):
 
 @pytest.mark.parametrize("option, name", [
     (dict(peak_width=1e300), "peak_width"), (dict(peak_width=2**62), "peak_width"),
-    (dict(egi_voxel_size=1e-300), "egi_voxel_size")])
+    (dict(egi_voxel_size=1e-300), "egi_voxel_size"),
+    (dict(egi_voxel_size=1e300), "egi_voxel_size")])
 def test_an_option_finite_but_beyond_any_grid_is_refused_by_name(option, name):
     source = _small_pair()
     with pytest.raises(ValueError, match=rf"^{name}="):
