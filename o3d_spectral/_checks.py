@@ -178,7 +178,13 @@ MAX_VOXELS_ACROSS = 2**20
 def check_voxel_span(voxel_size: float, extent: float, name: str,
                      setting: str = "voxel_size") -> None:
     """``ValueError`` naming ``setting`` (``voxel_size``) when the cloud ``name``,
-    ``extent`` metres across, would span over :data:`MAX_VOXELS_ACROSS` voxels of it."""
+    ``extent`` metres across, would span under 4 voxels of it (too few to register) or
+    over :data:`MAX_VOXELS_ACROSS` (no grid could hold it)."""
+    if extent < 4 * voxel_size:
+        raise ValueError(
+            f"{setting}={voxel_size:g} m is too large: {name} spans {extent:.4g} m, under 4 "
+            f"voxels of it: use a smaller {setting} (check the clouds are in metres)"
+        )
     if extent > MAX_VOXELS_ACROSS * voxel_size:
         raise ValueError(
             f"{setting}={voxel_size:g} m is too small: {name} spans {extent:.4g} m, over "

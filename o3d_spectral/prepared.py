@@ -46,23 +46,13 @@ def prepared_cloud(
     normal_radius: float | None, camera_location: ArrayLike | None, origin: ArrayLike,
     name: str,
 ) -> PreparedCloud:
-    """``cloud`` checked (it must span 4 voxels) and prepared
+    """``cloud`` checked (it must span 4 voxels, and no more than a grid holds) and prepared
     (:func:`o3d_spectral.io.cloud.prepare`, whose arguments these are)."""
     arrays = as_arrays(cloud, name)
     extent = largest_side(arrays.points)
-    if extent < 4 * voxel_size:
-        raise ValueError(
-            f"{name} spans {extent:.4g} m, under 4 voxels of {voxel_size} m: use a "
-            "smaller voxel_size (check the clouds are in metres)"
-        )
     check_voxel_span(voxel_size, extent, name)
     if egi_voxel_size is not None:  # the same bounds as the voxel's, for its cells
         check_voxel_span(egi_voxel_size, extent, name, "egi_voxel_size")
-        if extent < 4 * egi_voxel_size:
-            raise ValueError(
-                f"egi_voxel_size={egi_voxel_size:g} m is too large: {name} spans "
-                f"{extent:.4g} m, under 4 of its cells (None averages the normals in "
-                "cells of voxel_size / 4)")
     return prepare_arrays(
         arrays, voxel_size, egi_voxel_size=egi_voxel_size, normal_radius=normal_radius,
         camera_location=camera_location, origin=origin, name=name,
