@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..correlation import Backend, BatchedCorrelation, TurnedCloud
+from ..correlation import BatchedCorrelation, TurnedCloud
 from ..io.cloud import MIN_POINTS
 from ..search_options import GlobalSearchOption
 from ..spectra import so3
@@ -180,12 +180,11 @@ def placed_peaks(
 
 def turned_correlation(
     stepper: SpectralStepper, moving: MovingCloud, factor: float = 1.0,
-    backend: Backend | None = None,
 ) -> tuple[BatchedCorrelation, TurnedCloud]:
     """The phase correlation of the moving cloud turned about its centroid against the
     whole fixed grid of ``factor`` voxels, batched over rotations
-    (:class:`o3d_spectral.correlation.BatchedCorrelation`, on ``backend``, by default the
-    stepper's, on its ``device``), and the moving
+    (:class:`o3d_spectral.correlation.BatchedCorrelation`, on the stepper's backend, on
+    its ``device``), and the moving
     cloud as it turns it: :meth:`o3d_spectral.SpectralStepper.locate`'s peak height for
     each rotation (to single precision's rounding), culled as
     :meth:`o3d_spectral.SpectralStepper.visible` culls."""
@@ -193,7 +192,7 @@ def turned_correlation(
     box = grid.moving_box(moving.radius, moving.centroid)
     correlation = BatchedCorrelation(
         grid.values, box.shape, shape=grid.fft_shape(grid.box, box, moving.radius),
-        sigma=grid.peak_width, backend=backend or stepper.backend,
+        sigma=grid.peak_width, backend=stepper.backend,
     )
     culled, voxel = stepper.sees(moving), grid.voxel_size
     cloud = TurnedCloud(
