@@ -230,7 +230,7 @@ class ArrayBackend(Backend):
         self.xp, self.device = xp, device
         self.threaded = xp is np
         self._scatter_add = xp.add.at if xp is np else _gpu_scatter_add(xp)
-        self._out_of_memory = (MemoryError, *_gpu_memory_errors(xp))
+        self._out_of_memory = _gpu_memory_errors(xp)  # none for NumPy: MemoryError itself
 
     @contextlib.contextmanager
     def _on_device(self) -> Iterator[None]:
@@ -241,8 +241,6 @@ class ArrayBackend(Backend):
         try:
             with context:
                 yield
-        except MemoryError:
-            raise
         except self._out_of_memory as error:
             raise MemoryError(f"out of GPU memory: {error}") from error
 
