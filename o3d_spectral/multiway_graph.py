@@ -16,11 +16,11 @@ import open3d as o3d
 from numpy.typing import NDArray
 
 from ._checks import check_instance, check_voxel_size
+from .free_motions import leaves_motion_free
 from .io.cloud import CloudArrays, as_arrays
 from .io.units import MAX_EXTENT_RATIO, span
 from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
 from .parallel import one_open3d_thread, thread_map
-from .pose_evidence import leaves_motion_free
 from .refinement import point_to_plane_icp
 
 __all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",

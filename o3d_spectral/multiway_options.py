@@ -138,7 +138,7 @@ class PairwiseRecord:
         that gives none.
     determined : bool
         Neither cloud leaves a rigid motion free
-        (:func:`o3d_spectral.pose_evidence.leaves_motion_free`): a view showing only a
+        (:func:`o3d_spectral.free_motions.leaves_motion_free`): a view showing only a
         body of revolution (a mug with its handle hidden) fixes a pair's pose up to a turn
         about its axis at best, however well it fits. Set from the clouds.
     """

@@ -24,7 +24,10 @@ few distance queries on one KD-tree:
   body: only the handle resists that turn, and where the handle misses, the inliers
   carry almost none of it while the fit stays high. A motion no point resists (a can's
   turn about its axis, a symmetry) has no share to miss
-  (:data:`SUPPORT_FLOOR`);
+  (:data:`~o3d_spectral.free_motions.SUPPORT_FLOOR`);
+- the *free motions* (:mod:`o3d_spectral.free_motions`): the motions those inliers barely
+  resist that go on with their fit unchanged farther than a pose's tolerance, and whether
+  the whole source resists them (a symmetry of the source where it does not);
 - the *free-space violation*, only where the target is a single view whose sensor was
   located: the share of the source points facing that sensor (squarely, not at grazing
   rays) that lie in front of what the sensor saw along their ray (the sensor saw through
@@ -45,12 +48,13 @@ import scipy.linalg
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from .free_motions import SUPPORT_FLOOR, FreeMotion, constraint_rows, free_motions
 from .io.cloud import MIN_POINTS
 from .io.rows import known
 
 __all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
-           "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "SUPPORT_FLOOR", "motion_support",
-           "Motion", "least_supported_motion", "weakest_motion", "leaves_motion_free"]
+           "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "motion_support", "Motion",
+           "least_supported_motion", "weakest_motion"]
 
 #: Normals closer than this (degrees, either sign) agree.
 NORMAL_AGREEMENT_ANGLE = 30.0
@@ -64,13 +68,6 @@ RAY_RADIUS = 0.5
 #: with their ray to the sensor: at grazing rays a depth sensor returns no point on the
 #: surface, and a right pose's silhouette would seem seen through.
 MIN_INCIDENCE = 0.2
-#: :func:`motion_support`: a constraint this share of the mean constraint over the six
-#: motions is added to every motion, of the inliers and of all the points alike, so that a
-#: motion that almost no point resists (a symmetry of the shown surface, where the
-#: inliers' share is noise over noise) counts as supported. A near-symmetric object's
-#: small feature (a mug's handle on the turn about its body, 8-12% of a view's points)
-#: resists its motion with several times this.
-SUPPORT_FLOOR = 0.01
 #: Target points looked at on each ray, nearest to it first (one point per voxel puts
 #: a few on a ray: its front and back surfaces).
 RAY_NEIGHBOURS = 8
@@ -112,6 +109,9 @@ class PoseEvidence:
         The inliers' least share of the constraint on a rigid motion, [0, 1]
         (:func:`motion_support`; 1 when too few points have normals, 0 when no target
         point lies near the pose).
+    free_motions : tuple of FreeMotion
+        The motions that leave the fit unchanged (:func:`o3d_spectral.free_motions.free_motions`),
+        in the frame of ``pose``'s target.
     """
 
     fit: float
@@ -124,6 +124,7 @@ class PoseEvidence:
     rival_self_match: float = float("inf")
     two_views: bool = False
     motion_support: float = 1.0
+    free_motions: tuple[FreeMotion, ...] = ()
 
 
 def pose_evidence(
@@ -190,20 +191,22 @@ def pose_evidence(
     weakest = _weakest_of(shown, shown_normals, inlier)  # no inlier: the floor's share
     if weakest is not None:
         support = weakest.share
+    free = free_motions(shown, shown_normals, inlier, found_points, found_normals, tree, v,
+                        posed, normals)
     inside = near_points[np.sum((near_points - centre) ** 2, axis=1) <= (radius - v) ** 2]
     target_fit = 1.0
     if len(inside):
         explained, _ = cKDTree(posed).query(inside, distance_upper_bound=v)
         target_fit = float(np.mean(np.isfinite(explained)))
-    free = None
+    free_space = None
     if sensor is not None:  # on the points the sensor sees squarely (not at grazing rays)
         rays = sensor - shown
         incidence = np.einsum("ij,ij->i", shown_normals, rays)
         incidence /= np.maximum(np.linalg.norm(rays, axis=1), 1e-12)
         square = np.abs(incidence) > MIN_INCIDENCE if two_sided else incidence > MIN_INCIDENCE
-        free = _free_space(shown[square], target_points, sensor, v)
-    return PoseEvidence(float(fit), target_fit, plane, agreement, free, **rival,
-                        motion_support=support)
+        free_space = _free_space(shown[square], target_points, sensor, v)
+    return PoseEvidence(float(fit), target_fit, plane, agreement, free_space, **rival,
+                        motion_support=support, free_motions=free)
 
 
 class Motion(NamedTuple):
@@ -248,43 +251,13 @@ def least_supported_motion(
         translation of ``c`` (metres), of unit length together once the rotation is
         scaled by ``L``.
     """
-    rows, centre, scale = _constraint_rows(points, normals)
+    rows, centre, scale = constraint_rows(points, normals)
     every, inliers = rows.T @ rows, rows[inlier].T @ rows[inlier]
     floor = SUPPORT_FLOOR * np.trace(every) / 6.0 * np.eye(6)
     values, vectors = scipy.linalg.eigh(inliers + floor, every + floor)
     motion = vectors[:, 0] / max(float(np.linalg.norm(vectors[:, 0])), 1e-300)
     return Motion(float(min(max(values[0], 0.0), 1.0)), motion[:3] / scale, motion[3:], centre,
                   scale)
-
-
-def leaves_motion_free(points: NDArray[np.float64], normals: NDArray[np.float64]) -> bool:
-    """Whether a surface leaves some rigid motion free: the least constraint its points
-    put on a motion (the smallest eigenvalue of the ``A`` of
-    :func:`least_supported_motion`) is under :data:`SUPPORT_FLOOR` times the mean over
-    the six motions. A view that shows only a body of revolution (a mug's body with its
-    handle hidden, a can, a bowl) leaves the turn about its axis free, 0.2-0.6% of the
-    mean on the bundled models' views; a view showing the mug's handle holds it with
-    15-26%, and a box's or a drill's views every motion with 2% or more.
-
-    Parameters
-    ----------
-    points, normals : ndarray, shape (M, 3)
-        Points (metres) and their unit normals (either sign), M >= 1.
-    """
-    rows, _, _ = _constraint_rows(points, normals)
-    every = rows.T @ rows
-    return bool(np.linalg.eigvalsh(every)[0] < SUPPORT_FLOOR * np.trace(every) / 6.0)
-
-
-def _constraint_rows(
-    points: NDArray[np.float64], normals: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """Each point's resistance to the six small motions about the points' centroid (rows
-    (M, 6) of :func:`least_supported_motion`), the centroid (3,) and the points' RMS
-    distance to it (metres)."""
-    centre = points.mean(axis=0)
-    scale = max(float(np.sqrt(np.mean(np.sum((points - centre) ** 2, axis=1)))), 1e-12)
-    return np.hstack([np.cross((points - centre) / scale, normals), normals]), centre, scale
 
 
 def motion_support(

@@ -10,9 +10,10 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral import confidence_model
+from o3d_spectral.free_motions import SUPPORT_FLOOR
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.metrics import instance_score
-from o3d_spectral.pose_evidence import SUPPORT_FLOOR, PoseEvidence, motion_support, pose_evidence
+from o3d_spectral.pose_evidence import PoseEvidence, motion_support, pose_evidence
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid
 from o3d_spectral.synthetic.scenes import make_instance
