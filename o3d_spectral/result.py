@@ -6,6 +6,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
+from .free_motions import FreeMotion
 from .io.cloud import CloudReading
 from .law import IterationRecord
 from .pose_evidence import PoseEvidence
@@ -72,6 +73,13 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         :data:`o3d_spectral.verification.AMBIGUITY_MARGIN`): the angle between them,
         degrees (a symmetric object, or one the target shows too little of to tell);
         None otherwise. A warning says so.
+    free_motions : tuple of FreeMotion
+        The motions of the source that leave its fit unchanged farther than a pose's
+        tolerance (:mod:`o3d_spectral.free_motions`): a turn about an axis or a slide
+        along one, how far each way (degrees or metres), and whether it is a symmetry of
+        the source (the pose is right up to it) or a motion the data do not fix. In the
+        target's frame; empty for most poses. Neither the confidence nor the warnings
+        count them yet.
     pose_evidence : PoseEvidence or None
         What the confidence was computed from (:class:`o3d_spectral.pose_evidence.PoseEvidence`):
         the fits, the plane distance, the normals' agreement, the free-space violation.
@@ -111,6 +119,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.rival_fit = 0.0
         self.ambiguity: float | None = None
         self.pose_evidence: PoseEvidence | None = None
+        self.free_motions: tuple[FreeMotion, ...] = ()
         self.source_reading = CloudReading()
         self.target_reading = CloudReading()
         self.target_viewpoint: NDArray[np.float64] | None = None

@@ -228,6 +228,8 @@ def _measured(
         tree=run.stepper.normals_tree)
     result.pose_evidence = evidence
     result.confidence = confidence(evidence)
+    shift = np.zeros(3) if run.offset is None else run.offset  # to the caller's frame
+    result.free_motions = tuple(m.shifted(shift) for m in evidence.free_motions)
 
 
 def refined(
