@@ -34,6 +34,14 @@ On the held-back part it reports, for the refitted model and for the library's o
 confidence < 0.5, the Brier score; a table per group; and a reliability diagram
 (predicted against observed, in bins of 0.1).
 
+``--split object`` (``group``) instead holds back each object (each group) in turn and
+refits on the rest (leave one out): a fold's figures say how the confidence does on an
+object (a kind of data) it was not fitted on; ``folds.csv`` holds each fold's figures and
+``summary.csv`` the pooled held-back ones. ``--instances k`` draws other instances of
+every group (other seeds, other rotations of the real pairs). ``silent.csv`` counts the
+library's calls as they came back: wrong poses with confidence >= 0.5 and no warning of
+any kind, and right poses carrying a warning (of any kind, and about the pose).
+
 Writes to ``--out``: ``rows.csv`` (one row per call), ``summary.csv`` (pooled figures),
 ``groups.csv`` (per group, held-back), ``coefficients.json`` (the refit) and
 ``reliability.png``; with ``--docs``, also ``docs/data/calibrate_confidence_*.csv``, the
@@ -43,7 +51,8 @@ without registering again.
 
 Usage: python eval/calibrate_confidence.py --out out/calibrate_confidence [--per-group 12]
        [--rotations 3] [--groups partial ...] [--seed 0] [--penalty 0.03] [--docs]
-       [--rows out/calibrate_confidence/rows.csv]
+       [--rows out/calibrate_confidence/rows.csv] [--split half|object|group]
+       [--instances 0]
 """
 
 from __future__ import annotations
@@ -84,10 +93,15 @@ GROUPS = ("partial", "occluded", "cluttered", "crop_in_scene", "half_crop", *TUR
 #: The evidence columns of a row, as ``result.pose_evidence`` names them.
 EVIDENCE = ("fit", "target_fit", "plane_distance", "normal_agreement", "free_space",
             "rival_fit", "ambiguous", "rival_self_match", "two_views", "motion_support")
+#: How the warnings about the returned pose start (the others are about the inputs or
+#: the law's convergence).
+POSE_WARNINGS = ("low confidence", "ambiguous", "underdetermined")
 #: Bins of the reliability diagram.
 BINS = 10
 #: Elevation of the turntable pairs' views, degrees.
 ELEVATION = 30.0
+#: ``--instances k`` adds k times this to every synthetic instance's seed (units < 500).
+INSTANCE_SHIFT = 500_000
 
 Score = Callable[[np.ndarray], tuple[float, float, bool]]
 
@@ -107,25 +121,27 @@ def never_right(_: np.ndarray) -> tuple[float, float, bool]:
     return math.nan, math.nan, False
 
 
-def cases(group: str, n: int, rotations: int) -> Iterator[Case]:
-    """The first ``n`` units of ``group`` (see the module docstring)."""
+def cases(group: str, n: int, rotations: int, instances: int = 0) -> Iterator[Case]:
+    """The first ``n`` units of ``group`` (see the module docstring); ``instances`` > 0
+    draws other instances of the synthetic groups and other rotations of the real ones."""
+    shift = INSTANCE_SHIFT * instances
     names = model_names()
     picks = [names[i % len(names)] for i in range(n)]
     if group in ("partial", "occluded", "cluttered"):
         for i, name in enumerate(picks):
-            inst = make_instance(group, name, rng=np.random.default_rng(10_000 + i))
+            inst = make_instance(group, name, rng=np.random.default_rng(10_000 + shift + i))
             yield Case(group, f"{group}_{i}_{name}", inst.source, inst.target, VOXEL,
                        instance_score(inst))
     elif group == "crop_in_scene":
         for i, name in enumerate(picks):
-            yield crop_in_scene(i, name)
+            yield crop_in_scene(i, name, shift)
     elif group == "half_crop":
         for i, name in enumerate(picks):
-            yield half_crop(i, name)
+            yield half_crop(i, name, shift)
     elif group in TURNTABLE:
         for i, name in enumerate(picks):
             pair = turntable_pair(name, TURNTABLE[group], ELEVATION,
-                                  np.random.default_rng(20_000 + i))
+                                  np.random.default_rng(20_000 + shift + i))
             yield Case(group, f"{group}_{i}_{name}", pair.source, pair.target, VOXEL,
                        instance_score(pair))
     elif group == "dragon":  # round robin over the angles apart
@@ -133,14 +149,15 @@ def cases(group: str, n: int, rotations: int) -> Iterator[Case]:
         ordered = [c for row in zip(*by_angle, strict=False) for c in row]
         for case in ordered[:n]:
             for r in range(rotations):
-                turned, _ = real.randomly_rotated(case, real.rotation_seed(case.name, r))
+                turned, _ = real.randomly_rotated(
+                    case, real.rotation_seed(case.name, r + rotations * instances))
                 yield Case(group, case.name, turned.source, turned.target,
                            real.VOXEL_SIZES[case.group], real.case_score(turned))
     elif group == "wrong_object":
         for i, name in enumerate(picks):
             other = names[(names.index(name) + 1 + i // len(names)) % len(names)]
             condition = ("partial", "occluded")[i % 2]
-            inst = make_instance(condition, other, rng=np.random.default_rng(30_000 + i))
+            inst = make_instance(condition, other, rng=np.random.default_rng(30_000 + shift + i))
             points, normals = (a.copy() for a in model_cloud(name, 6000))
             yield Case(group, f"{name}_on_{other}_{i}", point_cloud(points, normals),
                        inst.target, VOXEL, never_right)
@@ -148,11 +165,11 @@ def cases(group: str, n: int, rotations: int) -> Iterator[Case]:
         raise SystemExit(f"error: unknown group {group!r}; known: {', '.join(GROUPS)}")
 
 
-def crop_in_scene(i: int, name: str) -> Case:
+def crop_in_scene(i: int, name: str, shift: int = 0) -> Case:
     """The object's points cut out of a cluttered view, at a random pose, against it."""
-    inst = make_instance("cluttered", name, rng=np.random.default_rng(40_000 + i))
+    inst = make_instance("cluttered", name, rng=np.random.default_rng(40_000 + shift + i))
     points = np.asarray(inst.target.points)[inst.target_labels == 0]
-    rng = np.random.default_rng(41_000 + i)
+    rng = np.random.default_rng(41_000 + shift + i)
     presentation = rigid(sample_rotation(rng), rng.uniform(-0.1, 0.1, size=3))
     source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).transform(presentation)
     truth = np.linalg.inv(presentation)
@@ -161,10 +178,10 @@ def crop_in_scene(i: int, name: str) -> Case:
                 symmetric_score(truth, symmetry, np.asarray(source.points).mean(axis=0)))
 
 
-def half_crop(i: int, name: str) -> Case:
+def half_crop(i: int, name: str, shift: int = 0) -> Case:
     """A model against a copy of itself cut by a plane within a fifth of its extent of its
     centroid, at a random pose."""
-    rng = np.random.default_rng(50_000 + i)
+    rng = np.random.default_rng(50_000 + shift + i)
     points, normals = (a.copy() for a in model_cloud(name, 6000))
     direction = rng.normal(size=3)
     direction /= np.linalg.norm(direction)
@@ -198,7 +215,13 @@ def register(case: Case) -> dict:
     row = {"group": case.group, "unit": case.unit, "right": int(right),
            "rotation_error_deg": rotation, "translation_error_m": translation,
            "seconds": seconds, "confidence": result.confidence,
-           "warned": int(any("may be wrong" in w for w in result.warnings))}
+           "warned": int(any("may be wrong" in w for w in result.warnings)),
+           "warnings": len(result.warnings),
+           "pose_warnings": sum(any(w.startswith(k) for k in POSE_WARNINGS)
+                                for w in result.warnings),
+           "free_motions": " ".join(
+               f"{m.kind}:{m.extent:.4g}:{'symmetry' if m.symmetric else 'unfixed'}"
+               for m in evidence.free_motions)}
     row.update({name: getattr(evidence, name) for name in EVIDENCE})
     row["free_space"] = "" if evidence.free_space is None else evidence.free_space
     row["ambiguous"], row["two_views"] = int(evidence.ambiguous), int(evidence.two_views)
@@ -290,6 +313,65 @@ def split(rows: list[dict], seed: int) -> np.ndarray:
     return held
 
 
+def fold_of(row: dict, by: str) -> str:
+    """The row's fold: its group, or its object (the source's model; ``dragon`` for the
+    real dragon scans)."""
+    if by == "group":
+        return row["group"]
+    if row["group"] == "dragon":
+        return "dragon"
+    unit = row["unit"]
+    if row["group"] == "wrong_object":
+        return unit.split("_on_")[0]
+    return next(name for name in model_names() if unit.endswith("_" + name))
+
+
+def silent(rows: list[dict], right: np.ndarray) -> dict:
+    """The library's calls as they came back: wrong poses with confidence >= 0.5 and no
+    warning of any kind (silent), right poses with a warning of any kind, and with a
+    warning about the pose (:data:`POSE_WARNINGS`)."""
+    confident = np.array([float(r["confidence"]) >= confidence_model.WARN_BELOW for r in rows])
+    warned = np.array([int(r["warnings"]) > 0 for r in rows])
+    about_pose = np.array([int(r["pose_warnings"]) > 0 for r in rows])
+    wrong = right == 0
+    return {"calls": len(rows), "wrong": int(wrong.sum()),
+            "silent_wrong": int(np.sum(wrong & confident & ~warned)),
+            "right": int((~wrong).sum()), "right_warned": int(np.sum(~wrong & warned)),
+            "right_pose_warned": int(np.sum(~wrong & about_pose))}
+
+
+def leave_one_out(rows: list[dict], X: np.ndarray, right: np.ndarray,
+                  args: argparse.Namespace) -> int:
+    """Refit on all folds but one and predict it, for each fold (``args.split``); write
+    each fold's figures (``folds.csv``), the pooled held-back figures of the refits and
+    of the library (``summary.csv``), and the reliability of the pooled refits."""
+    labels = np.array([fold_of(r, args.split) for r in rows])
+    pooled = np.full(len(rows), np.nan)
+    folds = []
+    for label in dict.fromkeys(labels):
+        out = labels == label
+        bias, weights = fit_logistic(X[~out], right[~out].astype(float), args.penalty)
+        pooled[out] = predict(bias, weights, X[out])
+        folds.append({"fold": label, **figures(pooled[out], right[out])})
+    library = library_confidence(X)
+    summary = [{"confidence": name, "part": f"each {args.split} held back",
+                **figures(p, right)} for name, p in (("refit", pooled), ("library", library))]
+    bins = reliability(pooled, right)
+    write_rows(args.out / "folds.csv", [rounded(r) for r in folds])
+    write_rows(args.out / "summary.csv", [rounded(r) for r in summary])
+    write_rows(args.out / "reliability.csv", [rounded(r) for r in bins])
+    plot(bins, args.out / "reliability.png", f"confidence, each {args.split} held back")
+    print(f"| {args.split} held back | n | wrong | AUROC | precision | recall | Brier |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for r in folds + summary:
+        print(f"| {r.get('fold', r.get('confidence'))} | {r['n']} | {r['wrong']} "
+              f"| {r['auroc']:.3f} | {r['precision']:.2f} | {r['recall']:.2f} "
+              f"| {r['brier']:.3f} |")
+    if "warnings" in rows[0]:
+        print(silent(rows, right))
+    return 0
+
+
 def reliability(p: np.ndarray, right: np.ndarray) -> list[dict]:
     """Per bin of predicted confidence: its range, count, mean prediction and observed
     share of right poses."""
@@ -338,6 +420,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--penalty", type=float, default=0.03)
     parser.add_argument("--rows", type=Path, help="refit from this rows.csv")
+    parser.add_argument("--split", choices=("half", "object", "group"), default="half",
+                        help="hold back half of each group's units, or each object (each "
+                             "group) in turn, fitted on the rest")
+    parser.add_argument("--instances", type=int, default=0,
+                        help="draw other instances (0: the calibration's own)")
     parser.add_argument("--docs", action="store_true",
                         help="also write docs/data/calibrate_confidence_*.csv and the figure")
     args = parser.parse_args(argv)
@@ -348,7 +435,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         rows = []
         for group in args.groups:
-            for case in cases(group, args.per_group, args.rotations):
+            for case in cases(group, args.per_group, args.rotations, args.instances):
                 row = register(case)
                 rows.append(row)
                 print(f"{group:14s} {case.unit:40s} right={row['right']} "
@@ -362,6 +449,10 @@ def main(argv: list[str] | None = None) -> int:
     right = np.array([int(r["right"]) for r in rows])
     X = design(rows)
     library = library_confidence(X)
+    if "warnings" in rows[0]:
+        write_rows(args.out / "silent.csv", [rounded(silent(rows, right))])
+    if args.split != "half":
+        return leave_one_out(rows, X, right, args)
     held = split(rows, args.seed)
     refit = library.copy()
     fitted = len(set(right[~held])) == 2

@@ -409,7 +409,8 @@ def test_c1_local(tmp_path):
 
 def test_calibrate_confidence(tmp_path):
     """Two units of three groups (a right view, a half crop, a wrong object): one of each
-    fits, one is held back; the refit from the stored rows prints the same tables."""
+    fits, one is held back; the refit from the stored rows prints the same tables; held
+    back by object, each object's rows are one fold, refitted on the other's."""
     out = tmp_path / "out"
     printed = run("calibrate_confidence.py", "--out", out, "--groups", "partial",
                   "half_crop", "wrong_object", "--per-group", 2, cwd=tmp_path)
@@ -430,6 +431,16 @@ def test_calibrate_confidence(tmp_path):
     again = run("calibrate_confidence.py", "--out", tmp_path / "again", "--rows",
                 out / "rows.csv", cwd=tmp_path)
     assert table_rows(again, "library") == table_rows(printed, "library")
+    silent = read_csv(out / "silent.csv")[0]
+    assert int(silent["calls"]) == 6 and int(silent["wrong"]) >= 2
+    assert 0 <= int(silent["silent_wrong"]) <= int(silent["wrong"])
+    by_object = tmp_path / "by_object"
+    run("calibrate_confidence.py", "--out", by_object, "--rows", out / "rows.csv",
+        "--split", "object", cwd=tmp_path)
+    folds = read_csv(by_object / "folds.csv")
+    assert [(f["fold"], f["n"]) for f in folds] == [("banana", "3"), ("bowl", "3")]
+    assert [(s["confidence"], s["part"], s["n"]) for s in read_csv(by_object / "summary.csv")] == [
+        ("refit", "each object held back", "6"), ("library", "each object held back", "6")]
 
 
 def test_check_unchanged(suites, tmp_path):
