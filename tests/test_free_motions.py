@@ -183,3 +183,26 @@ def test_a_free_motion_moves_by_what_it_says_and_follows_a_shift_of_frame():
     moved = turn.shifted(np.array([0.0, 2.0, 0.0]))
     assert np.allclose(moved.point, [1.0, 2.0, 0.0]) and moved.low == -10.0
 
+
+
+def test_the_global_call_reports_a_cans_turn_as_a_symmetry_in_the_callers_frame():
+    """Two views of a can 90 degrees apart: the result holds one free turn, a symmetry of
+    the source; the same clouds 50 m away (registered in a frame centred on the target)
+    give the same axis, its point moved with them."""
+    import copy
+
+    import o3d_spectral
+    from o3d_spectral.synthetic.turntable import turntable_pair
+
+    pair = turntable_pair("master_chef_can", 90, 30, np.random.default_rng(20_005))
+    near = o3d_spectral.registration_spectral_global(pair.source, pair.target, VOXEL)
+    shift = np.array([50.0, -20.0, 10.0])
+    far_source, far_target = (copy.deepcopy(c).translate(shift) for c in (pair.source,
+                                                                          pair.target))
+    far = o3d_spectral.registration_spectral_global(far_source, far_target, VOXEL)
+    assert [m.kind for m in near.free_motions] == ["turn"] and near.free_motions[0].symmetric
+    assert [m.kind for m in far.free_motions] == ["turn"]
+    a, b = near.free_motions[0], far.free_motions[0]
+    assert abs(a.axis @ b.axis) == pytest.approx(1.0, abs=1e-3)
+    off = b.point - (a.point + shift)
+    assert np.linalg.norm(off - (off @ a.axis) * a.axis) < 0.002
