@@ -89,10 +89,10 @@ class FreeMotion:
         Unit direction of the turn's axis, or of the slide.
     point : ndarray, shape (3,)
         A point on the turn's axis; for a slide, the inliers' centroid (metres).
-    low, high : float
-        How far the motion goes each way with the fit unchanged, from the pose (``low``
-        <= 0 <= ``high``): degrees about ``axis`` (right-handed) for a turn, metres along
-        ``axis`` for a slide; a whole turn is -180, 180.
+    reach : tuple of float
+        How far the motion goes each way with the fit unchanged, from the pose,
+        ``(low, high)`` with ``low <= 0 <= high``: degrees about ``axis`` (right-handed)
+        for a turn, metres along ``axis`` for a slide; a whole turn is (-180, 180).
     symmetric : bool
         The whole source resists the motion no more than its overlap: a symmetry of the
         source (the pose is right up to it) rather than a motion the data do not fix.
@@ -101,14 +101,13 @@ class FreeMotion:
     kind: str
     axis: NDArray[np.float64]
     point: NDArray[np.float64]
-    low: float
-    high: float
+    reach: tuple[float, float]
     symmetric: bool
 
     @property
     def extent(self) -> float:
-        """``high - low``: degrees (turn) or metres (slide)."""
-        return self.high - self.low
+        """``high - low`` of :attr:`reach`: degrees (turn) or metres (slide)."""
+        return self.reach[1] - self.reach[0]
 
     def transformation(self, amount: float) -> NDArray[np.float64]:
         """The motion by ``amount`` (degrees for a turn, metres for a slide), (4, 4)."""
@@ -117,17 +116,16 @@ class FreeMotion:
     def shifted(self, offset: NDArray[np.float64]) -> FreeMotion:
         """The same motion with the frame's origin moved by ``-offset`` (3,): its point
         plus ``offset``."""
-        return FreeMotion(self.kind, self.axis, self.point + offset, self.low, self.high,
-                          self.symmetric)
+        return FreeMotion(self.kind, self.axis, self.point + offset, self.reach, self.symmetric)
 
     def describe(self) -> str:
         """One line: how far it goes, along what."""
         a = ", ".join(f"{x:.2f}" for x in self.axis)
+        low, high = self.reach
         if self.kind == "turn":
             p = ", ".join(f"{x:.3g}" for x in self.point)
-            return (f"turned about the axis ({a}) through ({p}) by {self.low:.0f} to "
-                    f"{self.high:.0f} deg")
-        return f"slid along ({a}) by {self.low:.3g} to {self.high:.3g} m"
+            return f"turned about the axis ({a}) through ({p}) by {low:.0f} to {high:.0f} deg"
+        return f"slid along ({a}) by {low:.3g} to {high:.3g} m"
 
 
 def constraint_rows(
@@ -255,11 +253,11 @@ def free_motions(
     whole = known(whole_normals)
     found = []
     for kind, axis, point in unresisted_motions(held, held_normals):
-        low, high = _reach(overlap, limit, kind, axis, point, v)
-        if high - low > (TURN_TOLERANCE if kind == "turn" else SLIDE_TOLERANCE * v):
+        reach = _reach(overlap, limit, kind, axis, point, v)
+        if reach[1] - reach[0] > (TURN_TOLERANCE if kind == "turn" else SLIDE_TOLERANCE * v):
             symmetric = not _resists(whole_points[whole], whole_normals[whole], kind, axis,
                                      point)
-            found.append(FreeMotion(kind, axis, point, low, high, symmetric))
+            found.append(FreeMotion(kind, axis, point, reach, symmetric))
     return tuple(found)
 
 

@@ -94,7 +94,7 @@ def test_a_lidded_cylinder_patch_on_a_wider_one_leaves_one_turn_about_its_axis(m
     assert abs(turn.axis @ axis) == pytest.approx(1.0, abs=1e-6)
     off = turn.point - point
     assert np.linalg.norm(off - (off @ axis) * axis) < 1e-6 * scale
-    assert (turn.low, turn.high) == (-180.0, 180.0)
+    assert turn.reach == (-180.0, 180.0)
     assert turn.symmetric
 
 
@@ -112,7 +112,8 @@ def test_a_bare_cylinder_band_leaves_its_turn_and_the_slide_along_its_axis(motio
     for m in motions:
         assert abs(m.axis @ motion[:3, 2]) == pytest.approx(1.0, abs=1e-6)
         far, slack = (0.08 * scale, 2 * VOXEL * scale) if m.kind == "slide" else (90.0, 15.0)
-        assert far <= -m.low <= far + slack and far <= m.high <= far + slack
+        low, high = m.reach
+        assert far <= -low <= far + slack and far <= high <= far + slack
         assert m.symmetric
 
 
@@ -128,11 +129,12 @@ def test_a_plane_on_a_wider_plane_leaves_two_slides_and_a_turn(motion, scale):
     for m in motions:
         if m.kind == "slide":
             assert abs(m.axis @ normal) < 1e-6
-            assert 0.14 * scale <= -m.low <= (0.15 + 2 * VOXEL) * scale
-            assert 0.14 * scale <= m.high <= (0.15 + 2 * VOXEL) * scale
+            low, high = m.reach
+            assert 0.14 * scale <= -low <= (0.15 + 2 * VOXEL) * scale
+            assert 0.14 * scale <= high <= (0.15 + 2 * VOXEL) * scale
         else:
             assert abs(m.axis @ normal) == pytest.approx(1.0, abs=1e-6)
-            assert (m.low, m.high) == (-180.0, 180.0)
+            assert m.reach == (-180.0, 180.0)
         assert m.symmetric
 
 
@@ -173,15 +175,15 @@ def test_a_free_motion_moves_by_what_it_says_and_follows_a_shift_of_frame():
     """``transformation(amount)`` turns about its line by degrees (points on it stay),
     slides by metres; ``shifted`` moves its point, nothing else."""
     turn = FreeMotion("turn", np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]),
-                      -10.0, 30.0, False)
+                      (-10.0, 30.0), False)
     M = turn.transformation(90.0)
     assert np.allclose(M @ [1.0, 0.0, 5.0, 1.0], [1.0, 0.0, 5.0, 1.0])
     assert np.allclose(M @ [2.0, 0.0, 0.0, 1.0], [1.0, 1.0, 0.0, 1.0])
     assert turn.extent == 40.0
-    slide = FreeMotion("slide", np.array([0.0, 1.0, 0.0]), np.zeros(3), -0.1, 0.2, True)
+    slide = FreeMotion("slide", np.array([0.0, 1.0, 0.0]), np.zeros(3), (-0.1, 0.2), True)
     assert np.allclose(slide.transformation(0.5)[:3, 3], [0.0, 0.5, 0.0])
     moved = turn.shifted(np.array([0.0, 2.0, 0.0]))
-    assert np.allclose(moved.point, [1.0, 2.0, 0.0]) and moved.low == -10.0
+    assert np.allclose(moved.point, [1.0, 2.0, 0.0]) and moved.reach == (-10.0, 30.0)
 
 
 
