@@ -1,29 +1,44 @@
-"""Warnings about a registration's inputs and result, logged and kept in the result.
+"""What a registration says about its inputs and result: warnings and notes, logged and
+kept in the result.
 
-Each warning is logged on the ``o3d_spectral`` logger (``logging.WARNING``) and appended
-to :attr:`o3d_spectral.SpectralRegistrationResult.warnings`:
+A *warning* asks the caller to check something: the pose may be wrong, or an input was
+not what the call expected. Each is logged on the ``o3d_spectral`` logger
+(``logging.WARNING``) and appended to :attr:`o3d_spectral.SpectralRegistrationResult.warnings`:
 
 - the control law stopped at ``max_iteration`` before converging;
 - a cloud's given normals pointed to opposite sides between neighbours and were oriented
   again (an estimate with no orientation step);
-- a cloud was read two-sided: its neighbours' normals pointed away from each other (walls
-  thinner than the points' spacing), and its surfaces are matched seen from either side;
 - a cloud's normals are nearly all alike (a plane): its EGI leaves the rotation about
   them free;
 - the returned pose may be wrong: its calibrated confidence
   (:mod:`o3d_spectral.confidence_model`) is under :data:`WARN_BELOW`;
 - the returned pose is ambiguous: a distinct pose fits as well
-  (:func:`o3d_spectral.verification.ambiguity`), as for a symmetric object.
+  (:func:`o3d_spectral.verification.ambiguity`) and the source does not show that the
+  two are one pose turned by its symmetry (it is a single view, or does not map onto
+  itself by the turn between them).
+
+A *note* says how the call read the data or what the pose is free to be, with nothing to
+check; each is logged at ``logging.INFO`` and appended to
+:attr:`~o3d_spectral.SpectralRegistrationResult.notes`:
+
+- a cloud was read two-sided: its neighbours' normals pointed away from each other (walls
+  thinner than the points' spacing), and its surfaces are matched seen from either side;
+- a distinct pose fits as well and is the returned one turned by a symmetry of the whole
+  source (a model, not a view: a can's flip, a box's half turn): both are right;
+- the pose's free motions (:mod:`o3d_spectral.free_motions`), each a symmetry of the
+  source (the pose is right up to it) or a motion the data do not fix.
 """
 
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 from .confidence_model import WARN_BELOW
+from .free_motions import FreeMotion
 from .io.cloud import CloudReading
 
-__all__ = ["FLAT", "WARN_BELOW", "may_be_wrong", "registration_warnings"]
+__all__ = ["FLAT", "WARN_BELOW", "Messages", "may_be_wrong", "registration_messages"]
 
 logger = logging.getLogger(__name__)
 
@@ -37,11 +52,19 @@ def may_be_wrong(confidence: float) -> bool:
     return confidence < WARN_BELOW
 
 
-def registration_warnings(
+class Messages(NamedTuple):
+    """A registration's warnings and notes (see the module docstring)."""
+
+    warnings: list[str]
+    notes: list[str]
+
+
+def registration_messages(
     *, converged: bool, max_iteration: int, readings: dict[str, CloudReading],
     confidence: float | None, ambiguity: float | None = None,
-) -> list[str]:
-    """The warnings of one registration, each logged once.
+    symmetric_rival: bool = False, free_motions: tuple[FreeMotion, ...] = (),
+) -> Messages:
+    """The warnings and notes of one registration, each logged once.
 
     Parameters
     ----------
@@ -56,8 +79,13 @@ def registration_warnings(
         None: not measured.
     ambiguity : float or None
         The angle (degrees) to a distinct pose that fits as well, or None.
+    symmetric_rival : bool
+        That pose is the returned one turned by a symmetry of the whole source (not a
+        single view).
+    free_motions : tuple of FreeMotion
+        The returned pose's free motions.
     """
-    found = []
+    found, notes = [], []
     if not converged:
         found.append(f"the control law stopped at max_iteration={max_iteration} before "
                      "converging")
@@ -70,7 +98,7 @@ def registration_warnings(
                 f"({reading.orientation}): pass consistently oriented normals, or "
                 "CloudOption(camera_location=...)")
         if reading.two_sided:
-            found.append(
+            notes.append(
                 f"{name}: {share} of neighbouring normals pointed to opposite sides, away "
                 "from each other (walls thinner than the points' spacing, as a bowl's or a "
                 "mug's): read two-sided, its surfaces matched as seen from either side "
@@ -83,9 +111,19 @@ def registration_warnings(
             f"low confidence {confidence:.2f} (< {WARN_BELOW}): the pose may be wrong "
             "(result.confidence: the calibrated probability that it is right; "
             "result.pose_evidence says why)")
-    if ambiguity is not None:
+    if ambiguity is not None and symmetric_rival:
+        notes.append(f"symmetric: a pose {ambiguity:.0f} deg away fits as well, the source "
+                     "turned onto itself: both are right (result.ambiguity)")
+    elif ambiguity is not None:
         found.append(f"ambiguous: a pose {ambiguity:.0f} deg away fits as well (a symmetric "
                      "object?): result.ambiguity")
+    for motion in free_motions:
+        meaning = ("a symmetry of the source: the pose is right up to it" if motion.symmetric
+                   else "no symmetry of the source: the data do not fix the pose along it")
+        notes.append(f"free: the clouds fit as well {motion.describe()}, {meaning} "
+                     "(result.free_motions)")
     for text in found:
         logger.warning(text)
-    return found
+    for text in notes:
+        logger.info(text)
+    return Messages(found, notes)

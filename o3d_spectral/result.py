@@ -78,8 +78,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         tolerance (:mod:`o3d_spectral.free_motions`): a turn about an axis or a slide
         along one, how far each way (degrees or metres), and whether it is a symmetry of
         the source (the pose is right up to it) or a motion the data do not fix. In the
-        target's frame; empty for most poses. Neither the confidence nor the warnings
-        count them yet.
+        target's frame; empty for most poses. Each is a note (:attr:`notes`); the
+        confidence does not count them.
     pose_evidence : PoseEvidence or None
         What the confidence was computed from (:class:`o3d_spectral.pose_evidence.PoseEvidence`):
         the fits, the plane distance, the normals' agreement, the free-space violation.
@@ -91,7 +91,11 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         Where the target's sensor was taken to be (metres) when the source was matched
         as that sensor would see it (back faces culled); None when matched whole.
     warnings : list of str
-        What was logged as a warning during the call (:mod:`o3d_spectral.diagnostics`).
+        What was logged as a warning during the call: what the caller should check (the
+        pose may be wrong, an input was not as expected; :mod:`o3d_spectral.diagnostics`).
+    notes : list of str
+        What was logged as a note (``logging.INFO``): how the data were read, a symmetric
+        twin of the pose, its free motions; nothing to check.
     confirmed : bool
         Global call only: the search's best placed hypothesis was confirmed by its fit
         (:mod:`o3d_spectral.search.confirmation`) and the climbs were skipped; ``hypotheses``
@@ -124,6 +128,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.target_reading = CloudReading()
         self.target_viewpoint: NDArray[np.float64] | None = None
         self.warnings: list[str] = []
+        self.notes: list[str] = []
         self.confirmed = False
         self.stage_times: dict[str, float] = {}
 

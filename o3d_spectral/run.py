@@ -25,7 +25,7 @@ from ._checks import (
     check_voxel_size,
 )
 from .confidence_model import confidence
-from .diagnostics import registration_warnings
+from .diagnostics import registration_messages
 from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
 from .io.density import read_at_voxels
 from .io.units import check_same_units
@@ -44,7 +44,7 @@ from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
 from .search_options import GlobalSearchOption
 from .stepper import MovingCloud, SpectralStepper
-from .verification import FixedPoints, ambiguity, measure
+from .verification import ASYMMETRIC, FixedPoints, ambiguity, measure
 
 __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -172,10 +172,14 @@ def finish(
     near, indices = near_pose(target, run.source.points, transformation, distance)
     result.transformation = transformation
     _measured(run, result, fixed, transformation)
-    result.warnings = registration_warnings(
+    evidence = result.pose_evidence
+    result.warnings, result.notes = registration_messages(
         converged=best.converged, max_iteration=run.criteria.max_iteration,
         readings={"source": result.source_reading, "target": result.target_reading},
         confidence=result.confidence, ambiguity=result.ambiguity,
+        symmetric_rival=(result.source_reading.view is None
+                         and evidence.rival_self_match < ASYMMETRIC),
+        free_motions=result.free_motions,
     )
     if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
         evaluation = o3d.pipelines.registration.evaluate_registration(

@@ -99,20 +99,29 @@ def test_a_model_right_on_a_single_view_fits_though_its_fitness_is_low():
 def test_the_warning_fires_under_half_confidence_only(confidence, flagged):
     assert diagnostics.may_be_wrong(confidence) == flagged
     reading = o3d_spectral.io.cloud.CloudReading()
-    found = diagnostics.registration_warnings(
+    found, notes = diagnostics.registration_messages(
         converged=True, max_iteration=100, readings={"source": reading},
         confidence=confidence)
+    assert notes == []
     assert [w.startswith(f"low confidence {confidence:.2f}") and "may be wrong" in w
             for w in found] == ([True] if flagged else [])
 
 
 def test_the_ambiguity_warning_names_the_angle():
+    """A rival the source does not show to be its symmetry is warned about; one that
+    turns the whole source onto itself is a note: both poses are right."""
     reading = o3d_spectral.io.cloud.CloudReading()
-    found = diagnostics.registration_warnings(
+    found, notes = diagnostics.registration_messages(
         converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
         ambiguity=179.6)
     assert found == ["ambiguous: a pose 180 deg away fits as well (a symmetric object?): "
-                     "result.ambiguity"]
+                     "result.ambiguity"] and notes == []
+    found, notes = diagnostics.registration_messages(
+        converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
+        ambiguity=179.6, symmetric_rival=True)
+    assert found == [] and notes == ["symmetric: a pose 180 deg away fits as well, the "
+                                     "source turned onto itself: both are right "
+                                     "(result.ambiguity)"]
 
 
 def test_the_local_call_has_no_rival():

@@ -287,6 +287,7 @@ def _summary(result, voxel_size: float) -> dict:
         "target_viewpoint": None if result.target_viewpoint is None
         else result.target_viewpoint.tolist(),
         "warnings": result.warnings,
+        "notes": result.notes,
     }
 
 
