@@ -16,10 +16,12 @@ Groups (each instance a *unit*; a real pair turned several ways is one unit):
   a random pose, against the whole view (a crop whose sensor is unknown);
 * ``half_crop``: a model against a copy of itself cut by a plane near its centroid, at a
   random pose (a crop hides no surface: its right pose must not be warned about);
-* ``turntable_45`` / ``_90`` / ``_135``: two depth views of a model, the turntable turned
-  that far between them (``synthetic.turntable``);
-* ``dragon``: the bundled dragon scans 24-96 degrees apart (``harness.real``), each from
+* ``turntable_30`` / ``_45`` / ``_90`` / ``_135`` / ``_150``: two depth views of a model,
+  the turntable turned that far between them (``synthetic.turntable``);
+* ``dragon``: the bundled dragon scans 24-168 degrees apart (``harness.real``), each from
   ``--rotations`` random rotations;
+* ``ycbv_crop``, ``ycbv_frame``: the bundled YCB-Video frame's objects against their crop
+  and against the whole frame (``harness.real``), each from ``--rotations`` rotations;
 * ``wrong_object``: a model against a depth view (partial or occluded) of another model.
 
 Split: within each group, the units are shuffled with ``--seed`` and the first half (odd
@@ -37,7 +39,9 @@ confidence < 0.5, the Brier score; a table per group; and a reliability diagram
 ``--split object`` (``group``) instead holds back each object (each group) in turn and
 refits on the rest (leave one out): a fold's figures say how the confidence does on an
 object (a kind of data) it was not fitted on; ``folds.csv`` holds each fold's figures and
-``summary.csv`` the pooled held-back ones. ``--instances k`` draws other instances of
+``summary.csv`` the pooled held-back ones (with ``--docs``, also
+``docs/data/calibrate_confidence_{object,group}_{folds,summary}.csv`` and
+``calibrate_confidence_silent.csv``). ``--instances k`` draws other instances of
 every group (other seeds, other rotations of the real pairs). ``silent.csv`` counts the
 library's calls as they came back: wrong poses with confidence >= 0.5 and no warning of
 any kind, and right poses carrying a warning (of any kind, and about the pose).
@@ -65,6 +69,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from itertools import zip_longest
 from pathlib import Path
 
 import numpy as np
@@ -86,10 +91,13 @@ from o3d_spectral.synthetic.turntable import turntable_pair
 
 ROOT = Path(__file__).resolve().parents[1]
 VOXEL = 0.008
-TURNTABLE = {"turntable_45": 45, "turntable_90": 90, "turntable_135": 135}
-DRAGON_GROUPS = ("dragon_24", "dragon_48", "dragon_72", "dragon_96")
+TURNTABLE = {f"turntable_{angle}": angle for angle in (30, 45, 90, 135, 150)}
+#: The dragon scan pairs' steps, degrees (round robin over them).
+DRAGON_STEPS = (24, 48, 72, 96, 120, 144, 168)
+#: The YCB-Video frame's objects, against their crop and against the whole frame.
+YCBV_GROUPS = ("ycbv_crop", "ycbv_frame")
 GROUPS = ("partial", "occluded", "cluttered", "crop_in_scene", "half_crop", *TURNTABLE,
-          "dragon", "wrong_object")
+          "dragon", *YCBV_GROUPS, "wrong_object")
 #: The evidence columns of a row, as ``result.pose_evidence`` names them.
 EVIDENCE = ("fit", "target_fit", "plane_distance", "normal_agreement", "free_space",
             "rival_fit", "ambiguous", "rival_self_match", "two_views", "motion_support")
@@ -144,15 +152,17 @@ def cases(group: str, n: int, rotations: int, instances: int = 0) -> Iterator[Ca
                                   np.random.default_rng(20_000 + shift + i))
             yield Case(group, f"{group}_{i}_{name}", pair.source, pair.target, VOXEL,
                        instance_score(pair))
-    elif group == "dragon":  # round robin over the angles apart
-        by_angle = [real.load_cases([name]) for name in DRAGON_GROUPS]
-        ordered = [c for row in zip(*by_angle, strict=False) for c in row]
+    elif group in ("dragon", *YCBV_GROUPS):  # the dragon's: round robin over the steps
+        by_step = ([real.dragon_cases(step) for step in DRAGON_STEPS] if group == "dragon"
+                   else [real.load_cases([group])])
+        ordered = [c for row in zip_longest(*by_step) for c in row if c is not None]
         for case in ordered[:n]:
             for r in range(rotations):
                 turned, _ = real.randomly_rotated(
                     case, real.rotation_seed(case.name, r + rotations * instances))
                 yield Case(group, case.name, turned.source, turned.target,
-                           real.VOXEL_SIZES[case.group], real.case_score(turned))
+                           real.VOXEL_SIZES.get(case.group, real.VOXEL_SIZES["dragon_24"]),
+                           real.case_score(turned))
     elif group == "wrong_object":
         for i, name in enumerate(picks):
             other = names[(names.index(name) + 1 + i // len(names)) % len(names)]
@@ -219,6 +229,9 @@ def register(case: Case) -> dict:
            "warnings": len(result.warnings),
            "pose_warnings": sum(any(w.startswith(k) for k in POSE_WARNINGS)
                                 for w in result.warnings),
+           "warning_kinds": " ".join(kind_of(w) for w in result.warnings),
+           "notes": len(result.notes),
+           "source_view": int(result.source_reading.view is not None),
            "free_motions": " ".join(
                f"{m.kind}:{m.extent:.4g}:{'symmetry' if m.symmetric else 'unfixed'}"
                for m in evidence.free_motions)}
@@ -228,19 +241,34 @@ def register(case: Case) -> dict:
     return row
 
 
+def kind_of(warning: str) -> str:
+    """A warning's kind, one word (``o3d_spectral.diagnostics``)."""
+    for key, kind in (("control law stopped", "not_converged"), ("oriented again", "reoriented"),
+                      ("read two-sided", "two_sided"), ("nearly all alike", "flat"),
+                      ("low confidence", "low_confidence"), ("ambiguous", "ambiguous"),
+                      ("underdetermined", "underdetermined")):
+        if key in warning:
+            return kind
+    return "other"
+
+
 def read_rows(path: Path) -> list[dict]:
     with open(path, newline="") as handle:
         return list(csv.DictReader(handle))
+
+
+def optional(value: str | None) -> float | None:
+    """A stored number, or None where the cell is empty."""
+    return None if value in ("", None) else float(value)
 
 
 def design(rows: list[dict]) -> np.ndarray:
     """The model's features of each row, (N, F) in ``confidence_model.FEATURES`` order."""
     out = []
     for row in rows:
-        free = row["free_space"]
         evidence = PoseEvidence(
             float(row["fit"]), float(row["target_fit"]), float(row["plane_distance"]),
-            float(row["normal_agreement"]), None if free in ("", None) else float(free),
+            float(row["normal_agreement"]), optional(row["free_space"]),
             float(row["rival_fit"]), bool(int(row["ambiguous"])),
             float(row["rival_self_match"]), bool(int(row["two_views"])),
             float(row["motion_support"]))
@@ -272,10 +300,17 @@ def predict(bias: float, weights: np.ndarray, X: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 + np.exp(-np.clip(bias + X @ weights, -500.0, 500.0)))
 
 
-def library_confidence(X: np.ndarray) -> np.ndarray:
-    """The library's confidence at the features ``X`` (N, F), with its constants."""
+def library_confidence(X: np.ndarray, corroborated: np.ndarray) -> np.ndarray:
+    """The library's confidence at the features ``X`` (N, F), with its constants; 0 where
+    no point corroborates the pose (``corroborated`` (N,) False: a fit of 0)."""
     weights = np.array([confidence_model.COEFFICIENTS[n] for n in confidence_model.FEATURES])
-    return predict(confidence_model.BIAS, weights, X)
+    return predict(confidence_model.BIAS, weights, X) * corroborated
+
+
+def corroborated(rows: list[dict]) -> np.ndarray:
+    """Where a row's pose has a fit over 0 (``confidence_model.confidence`` is 0 where
+    not), (N,) bool."""
+    return np.array([float(r["fit"]) > 0.0 for r in rows])
 
 
 def auroc(p: np.ndarray, right: np.ndarray) -> float:
@@ -346,14 +381,15 @@ def leave_one_out(rows: list[dict], X: np.ndarray, right: np.ndarray,
     each fold's figures (``folds.csv``), the pooled held-back figures of the refits and
     of the library (``summary.csv``), and the reliability of the pooled refits."""
     labels = np.array([fold_of(r, args.split) for r in rows])
+    seen = corroborated(rows)
     pooled = np.full(len(rows), np.nan)
     folds = []
     for label in dict.fromkeys(labels):
         out = labels == label
         bias, weights = fit_logistic(X[~out], right[~out].astype(float), args.penalty)
-        pooled[out] = predict(bias, weights, X[out])
+        pooled[out] = predict(bias, weights, X[out]) * seen[out]
         folds.append({"fold": label, **figures(pooled[out], right[out])})
-    library = library_confidence(X)
+    library = library_confidence(X, seen)
     summary = [{"confidence": name, "part": f"each {args.split} held back",
                 **figures(p, right)} for name, p in (("refit", pooled), ("library", library))]
     bins = reliability(pooled, right)
@@ -361,6 +397,13 @@ def leave_one_out(rows: list[dict], X: np.ndarray, right: np.ndarray,
     write_rows(args.out / "summary.csv", [rounded(r) for r in summary])
     write_rows(args.out / "reliability.csv", [rounded(r) for r in bins])
     plot(bins, args.out / "reliability.png", f"confidence, each {args.split} held back")
+    if args.docs:
+        for name in ("folds", "summary"):
+            write_rows(ROOT / "docs" / "data" / f"calibrate_confidence_{args.split}_{name}.csv",
+                       read_rows(args.out / f"{name}.csv"))
+        if "warnings" in rows[0]:
+            write_rows(ROOT / "docs" / "data" / "calibrate_confidence_silent.csv",
+                       read_rows(args.out / "silent.csv"))
     print(f"| {args.split} held back | n | wrong | AUROC | precision | recall | Brier |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for r in folds + summary:
@@ -440,15 +483,16 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(row)
                 print(f"{group:14s} {case.unit:40s} right={row['right']} "
                       f"confidence={row['confidence']:.3f} {row['seconds']:.2f} s", flush=True)
-        # the calls' own result.confidence is the library's model of their features
         stored = np.array([float(r["confidence"]) for r in rows])
-        if not np.allclose(library_confidence(design(rows)), stored, atol=1e-9):
-            raise AssertionError("result.confidence differs from the model of its features")
+        model = library_confidence(design(rows), corroborated(rows))
         rows = [rounded(r) for r in rows]  # as stored: a refit from the file is the same
         write_rows(args.out / "rows.csv", rows)
+        # the calls' own result.confidence is the library's model of their features
+        if not np.allclose(model, stored, atol=1e-9):
+            raise AssertionError("result.confidence differs from the model of its features")
     right = np.array([int(r["right"]) for r in rows])
     X = design(rows)
-    library = library_confidence(X)
+    library = library_confidence(X, corroborated(rows))
     if "warnings" in rows[0]:
         write_rows(args.out / "silent.csv", [rounded(silent(rows, right))])
     if args.split != "half":
@@ -458,7 +502,7 @@ def main(argv: list[str] | None = None) -> int:
     fitted = len(set(right[~held])) == 2
     if fitted:
         bias, weights = fit_logistic(X[~held], right[~held].astype(float), args.penalty)
-        refit = predict(bias, weights, X)
+        refit = predict(bias, weights, X) * corroborated(rows)
         coefficients = {"bias": bias, **dict(zip(confidence_model.FEATURES, weights.tolist(),
                                                  strict=True))}
         (args.out / "coefficients.json").write_text(json.dumps(coefficients, indent=2) + "\n")

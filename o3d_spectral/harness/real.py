@@ -45,6 +45,7 @@ __all__ = [
     "NORMAL_MODES",
     "YCBV_CLASSES",
     "RealCase",
+    "dragon_cases",
     "dragon_pose",
     "load_cases",
     "randomly_rotated",
@@ -160,7 +161,10 @@ def dragon_pose(angle: int) -> np.ndarray:
     raise ValueError(f"no dragon scan at {angle} degrees; bundled: {DRAGON_ANGLES}")
 
 
-def _dragon_cases(step: int) -> list[RealCase]:
+def dragon_cases(step: int) -> list[RealCase]:
+    """Every pair of bundled dragon scans ``step`` degrees apart (a multiple of 24, up to
+    168; :func:`load_cases` groups 24-120), the first scan the source, its group
+    ``f"dragon_{step}"``."""
     cases = []
     for a in DRAGON_ANGLES:
         b = a + step
@@ -245,7 +249,7 @@ def load_cases(groups: tuple[str, ...] | list[str] | None = None) -> list[RealCa
     for group in GROUPS:
         if group in chosen:
             cases += (
-                _dragon_cases(int(group.split("_")[1])) if group.startswith("dragon")
+                dragon_cases(int(group.split("_")[1])) if group.startswith("dragon")
                 else _ycbv_cases(group)
             )
     return cases
