@@ -72,7 +72,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         Where a distinct pose fits as well as the returned one (within
         :data:`o3d_spectral.verification.AMBIGUITY_MARGIN`): the angle between them,
         degrees (a symmetric object, or one the target shows too little of to tell);
-        None otherwise. A warning says so.
+        None otherwise. A warning says so; a note where the rival is the returned pose
+        turned by a symmetry of the whole source (a model, not a view): both are right.
     free_motions : tuple of FreeMotion
         The motions of the source that leave its fit unchanged farther than a pose's
         tolerance (:mod:`o3d_spectral.free_motions`): a turn about an axis or a slide

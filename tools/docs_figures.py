@@ -305,6 +305,41 @@ def confidence_misses() -> str:
     )
 
 
+def confidence_held_out() -> str:
+    """The confidence refitted with each object, then each group, held back in turn: the
+    pooled held-back figures, the folds' worst AUROC, and the calls' silent wrong poses
+    and warned right ones."""
+    def share(value: str) -> str:
+        return "-" if value in ("", "nan") else f"{100 * float(value):.0f}%"
+
+    rows = []
+    for split in ("object", "group"):
+        pooled = {r["confidence"]: r for r in read_csv(f"calibrate_confidence_{split}_summary")}
+        folds = [r for r in read_csv(f"calibrate_confidence_{split}_folds")
+                 if r["auroc"] not in ("", "nan")]
+        worst = min(folds, key=lambda r: float(r["auroc"]))
+        refit = pooled["refit"]
+        rows.append([f"each {split} held back", refit["n"], refit["wrong"],
+                     f"{float(refit['auroc']):.3f}",
+                     f"{float(worst['auroc']):.2f} ({worst['fold']})",
+                     share(refit["precision"]), share(refit["recall"]),
+                     f"{float(refit['brier']):.3f}"])
+    silent = read_csv("calibrate_confidence_silent")[0]
+    return "\n".join([
+        table(["refitted with", "n", "wrong", "AUROC", "worst fold's AUROC",
+               "warning precision", "recall", "Brier"], rows),
+        "",
+        f"The library's own calls: {silent['silent_wrong']} of {silent['wrong']} wrong poses "
+        f"came back with confidence 0.5 or more and no warning; {silent['right_warned']} of "
+        f"{silent['right']} right poses carried a warning.",
+        "",
+        provenance("calibrate_confidence_object_summary", "calibrate_confidence_group_summary",
+                   "calibrate_confidence_silent") + " Per fold: "
+        "`docs/data/calibrate_confidence_object_folds.csv`, "
+        "`docs/data/calibrate_confidence_group_folds.csv`.",
+    ])
+
+
 #: ``eval/bench_density.py``'s methods, in the docs' order, and how the docs name them.
 DENSITY_METHODS = {"spectral_global": "spectral", "fpfh_ransac_lean": "lean FPFH-RANSAC"}
 #: The stages of ``registration_spectral_global`` in ``eval/bench_density.py``'s summary.
@@ -1025,6 +1060,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "recall-notes": recall_notes,
     "density-notes": density_notes,
     "confidence-misses": confidence_misses,
+    "confidence-held-out": confidence_held_out,
     "handle-visibility": handle_visibility,
     "dense": dense,
     "dense-cores": dense_cores,
