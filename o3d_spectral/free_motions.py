@@ -119,12 +119,12 @@ class FreeMotion:
         return FreeMotion(self.kind, self.axis, self.point + offset, self.reach, self.symmetric)
 
     def describe(self) -> str:
-        """One line: how far it goes, along what."""
+        """One line: how far it goes, along what (the direction only: the same in any
+        frame that differs by a shift)."""
         a = ", ".join(f"{x:.2f}" for x in self.axis)
         low, high = self.reach
         if self.kind == "turn":
-            p = ", ".join(f"{x:.3g}" for x in self.point)
-            return f"turned about the axis ({a}) through ({p}) by {low:.0f} to {high:.0f} deg"
+            return f"turned about an axis along ({a}) by {low:.0f} to {high:.0f} deg"
         return f"slid along ({a}) by {low:.3g} to {high:.3g} m"
 
 

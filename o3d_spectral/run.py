@@ -2,9 +2,9 @@
 
 :func:`start` checks the arguments, centres the clouds on the target and prepares both
 (:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.stepper.MovingCloud`);
-:func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), measures it as Open3D
-does, by its fit (:mod:`o3d_spectral.verification`) and by the calibrated confidence
-(:mod:`o3d_spectral.confidence_model`), and fills the result.
+:func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), judges it once
+(:mod:`o3d_spectral.verdict`: its fit, evidence, confidence, warnings and notes), measures
+it as Open3D does, and fills the result in the caller's frame.
 """
 
 from __future__ import annotations
@@ -24,9 +24,7 @@ from ._checks import (
     check_transformation,
     check_voxel_size,
 )
-from .confidence_model import confidence
-from .diagnostics import registration_messages
-from .io.cloud import CloudArrays, as_arrays, extent, to_legacy
+from .io.cloud import CloudArrays, CloudReading, as_arrays, extent, to_legacy
 from .io.density import read_at_voxels
 from .io.units import check_same_units
 from .law import Climb, climb
@@ -36,7 +34,6 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .pose_evidence import pose_evidence
 from .prepared import PreparedSource
 from .prepared_target import PreparedTarget
 from .refinement import near_pose, refine, with_normals
@@ -44,7 +41,7 @@ from .result import SpectralRegistrationResult
 from .search.situation import Situation, situation
 from .search_options import GlobalSearchOption
 from .stepper import MovingCloud, SpectralStepper
-from .verification import ASYMMETRIC, FixedPoints, ambiguity, measure
+from .verdict import Verdict, verdict
 
 __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -151,89 +148,85 @@ def finish(
     transformation: NDArray[np.float64], refinement: RefinementOption | None,
     max_correspondence_distance: float | None,
 ) -> SpectralRegistrationResult:
-    """Polish ``transformation`` (4, 4), measure it (``fitness``, ``fit``), and fill
-    ``result``, with the warnings of the call."""
-    result.history, result.converged = best.history, best.converged
-    result.num_iterations = len(best.history)
-    result.source_reading = run.moving.reading.turned(run.init[:3, :3].T)  # source frame
-    result.target_reading = run.stepper.target_reading
-    if run.situation.culls:
-        result.target_viewpoint = run.stepper.viewpoint.copy()
-        if run.offset is not None:
-            result.target_viewpoint += run.offset
-    voxel_size = run.stepper.voxel_size
+    """Polish ``transformation`` (4, 4), judge it once (:func:`o3d_spectral.verdict.verdict`),
+    measure it as Open3D does (``fitness``, ``inlier_rmse``, ``correspondence_set``), and
+    fill ``result`` in the caller's frame."""
     source, target = to_legacy(run.source), to_legacy(run.target)
-    fixed = with_normals(target, *run.fixed_normals)  # the polish's and the measure's
+    fixed = with_normals(target, *run.fixed_normals)  # the polish's and the verdict's
+    pose = _polished(run, source, fixed, transformation, refinement)
+    readings = {"source": run.moving.reading.turned(run.init[:3, :3].T),  # source frame
+                "target": run.stepper.target_reading}
+    to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
+    judged = verdict(run.stepper, run.moving, fixed, pose @ to_moving,
+                     [M @ to_moving for M, _ in result.hypotheses],
+                     culls=run.situation.culls, readings=readings, converged=best.converged,
+                     max_iteration=run.criteria.max_iteration)
+    distance = (run.stepper.voxel_size if max_correspondence_distance is None
+                else max_correspondence_distance)
+    _open3d_measures(run, result, source, target, pose, distance)
+    return _filled(run, result, best, pose, judged, readings, distance)
+
+
+def _polished(
+    run: Run, source: o3d.geometry.PointCloud, fixed: o3d.geometry.PointCloud,
+    transformation: NDArray[np.float64], refinement: RefinementOption | None,
+) -> NDArray[np.float64]:
+    """``transformation`` polished where ``refinement`` is set (:func:`refined`), checked
+    finite."""
     if refinement is not None:
         transformation = refined(run, source, fixed, transformation, refinement)
     if not np.all(np.isfinite(transformation)):  # never expected: guard the contract
         raise FloatingPointError("the registration produced a non-finite transformation")
-    distance = voxel_size if max_correspondence_distance is None else max_correspondence_distance
-    near, indices = near_pose(target, run.source.points, transformation, distance)
-    result.transformation = transformation
-    _measured(run, result, fixed, transformation)
-    evidence = result.pose_evidence
-    result.warnings, result.notes = registration_messages(
-        converged=best.converged, max_iteration=run.criteria.max_iteration,
-        readings={"source": result.source_reading, "target": result.target_reading},
-        confidence=result.confidence, ambiguity=result.ambiguity,
-        symmetric_rival=(result.source_reading.view is None
-                         and evidence.rival_self_match < ASYMMETRIC),
-        free_motions=result.free_motions,
-    )
-    if len(indices):  # else no correspondence: fitness and inlier_rmse stay 0
-        evaluation = o3d.pipelines.registration.evaluate_registration(
-            source, near, distance, transformation
-        )
-        pairs = np.asarray(evaluation.correspondence_set)
-        pairs[:, 1] = indices[pairs[:, 1]]  # the whole target's
-        for column, index in enumerate((run.source_index, run.target_index)):
-            if index is not None:  # back to the caller's points
-                pairs[:, column] = index[pairs[:, column]]
-        result.fitness = evaluation.fitness
-        result.inlier_rmse = evaluation.inlier_rmse
-        result.correspondence_set = o3d.utility.Vector2iVector(pairs)
+    return transformation
+
+
+def _open3d_measures(
+    run: Run, result: SpectralRegistrationResult, source: o3d.geometry.PointCloud,
+    target: o3d.geometry.PointCloud, pose: NDArray[np.float64], distance: float,
+) -> None:
+    """Open3D's ``evaluate_registration`` of ``pose`` on the target near it: ``fitness``,
+    ``inlier_rmse`` and ``correspondence_set`` (indices in the caller's clouds) set in
+    ``result``; left at 0 where no target point is within ``distance``."""
+    near, indices = near_pose(target, run.source.points, pose, distance)
+    if len(indices) == 0:
+        return
+    evaluation = o3d.pipelines.registration.evaluate_registration(source, near, distance, pose)
+    pairs = np.asarray(evaluation.correspondence_set)
+    pairs[:, 1] = indices[pairs[:, 1]]  # the whole target's
+    for column, index in enumerate((run.source_index, run.target_index)):
+        if index is not None:  # back to the caller's points
+            pairs[:, column] = index[pairs[:, column]]
+    result.fitness = evaluation.fitness
+    result.inlier_rmse = evaluation.inlier_rmse
+    result.correspondence_set = o3d.utility.Vector2iVector(pairs)
+
+
+def _filled(
+    run: Run, result: SpectralRegistrationResult, best: Climb, pose: NDArray[np.float64],
+    judged: Verdict, readings: dict[str, CloudReading], distance: float,
+) -> SpectralRegistrationResult:
+    """``result`` filled with the climb, the polished ``pose`` and its verdict, everything
+    moved to the caller's frame at once."""
+    result.history, result.converged = best.history, best.converged
+    result.num_iterations = len(best.history)
+    result.source_reading, result.target_reading = readings["source"], readings["target"]
+    result.fit, result.ambiguity = judged.fit, judged.ambiguity
+    result.rival_fit = max(result.rival_fit, judged.rival_fit)  # the confirmation's too
+    result.pose_evidence, result.confidence = judged.evidence, judged.confidence
+    result.warnings, result.notes = judged.warnings, judged.notes
+    result.transformation, result.free_motions = pose, judged.free_motions
+    if run.situation.culls:
+        result.target_viewpoint = run.stepper.viewpoint.copy()
     if run.offset is not None:  # back to the caller's frame
-        result.transformation = centring.shifted(transformation, -run.offset)
+        result.transformation = centring.shifted(pose, -run.offset)
         result.history = centring.uncentred_history(result.history, run.offset)
         result.hypotheses = [(centring.shifted(M, -run.offset), s) for M, s in result.hypotheses]
+        result.free_motions = tuple(m.shifted(run.offset) for m in judged.free_motions)
+        if result.target_viewpoint is not None:
+            result.target_viewpoint += run.offset
     result.max_correspondence_distance = distance
     result.run_time = time.perf_counter() - run.start
     return result
-
-
-def _measured(
-    run: Run, result: SpectralRegistrationResult, fixed: o3d.geometry.PointCloud,
-    transformation: NDArray[np.float64],
-) -> None:
-    """Measure the returned ``transformation`` (4, 4, source to target, the run's frame)
-    once: its fit and rival fit (:func:`o3d_spectral.verification.measure`, against the
-    result's other hypotheses), the best distinct pose that fits as well
-    (:func:`o3d_spectral.verification.ambiguity`), its evidence
-    (:func:`o3d_spectral.pose_evidence.pose_evidence`) and the calibrated confidence
-    (:mod:`o3d_spectral.confidence_model`); set them in ``result``. ``fixed``: the
-    target with normals (:func:`o3d_spectral.refinement.with_normals`)."""
-    to_moving = np.linalg.inv(run.init)  # the moving cloud is the source posed by init
-    fixed = FixedPoints(fixed)  # one KD-tree for every fit
-    pose = transformation @ to_moving
-    others = [M @ to_moving for M, _ in result.hypotheses]
-    culls = run.situation.culls
-    measured = measure(run.stepper, run.moving, fixed, pose, others, culls=culls)
-    result.fit = measured.fit
-    result.rival_fit = max(result.rival_fit, measured.rival_fit)  # the confirmation's too
-    rival = ambiguity(run.stepper, run.moving, fixed, pose, measured, culls=culls)
-    result.ambiguity = rival.angle if rival.ambiguous else None
-    evidence = pose_evidence(
-        run.moving.points, run.moving.point_normals, *run.fixed_normals, pose,
-        run.stepper.voxel_size, fit=measured.fit, rival_fit=rival.fit,
-        ambiguous=rival.ambiguous, rival_self_match=rival.self_match,
-        two_views=run.stepper.viewpoint is not None and not culls,
-        sensor=run.stepper.viewpoint, two_sided=run.moving.reading.two_sided,
-        tree=run.stepper.normals_tree)
-    result.pose_evidence = evidence
-    result.confidence = confidence(evidence)
-    shift = np.zeros(3) if run.offset is None else run.offset  # to the caller's frame
-    result.free_motions = tuple(m.shifted(shift) for m in evidence.free_motions)
 
 
 def refined(
