@@ -15,7 +15,10 @@ not what the call expected. Each is logged on the ``o3d_spectral`` logger
 - the returned pose is ambiguous: a distinct pose fits as well
   (:func:`o3d_spectral.verification.ambiguity`) and the source does not show that the
   two are one pose turned by its symmetry (it is a single view, or does not map onto
-  itself by the turn between them).
+  itself by the turn between them);
+- the returned pose is underdetermined: the clouds fit as well moved along a motion that
+  the whole source resists (:mod:`o3d_spectral.free_motions`): the data do not fix the
+  pose along it.
 
 A *note* says how the call read the data or what the pose is free to be, with nothing to
 check; each is logged at ``logging.INFO`` and appended to
@@ -25,8 +28,8 @@ check; each is logged at ``logging.INFO`` and appended to
   thinner than the points' spacing), and its surfaces are matched seen from either side;
 - a distinct pose fits as well and is the returned one turned by a symmetry of the whole
   source (a model, not a view: a can's flip, a box's half turn): both are right;
-- the pose's free motions (:mod:`o3d_spectral.free_motions`), each a symmetry of the
-  source (the pose is right up to it) or a motion the data do not fix.
+- the pose's free motions that are a symmetry of the source
+  (:mod:`o3d_spectral.free_motions`): the pose is right up to them.
 """
 
 from __future__ import annotations
@@ -83,7 +86,8 @@ def registration_messages(
         That pose is the returned one turned by a symmetry of the whole source (not a
         single view).
     free_motions : tuple of FreeMotion
-        The returned pose's free motions.
+        The returned pose's free motions: a symmetry of the source is a note, any other
+        a warning.
     """
     found, notes = [], []
     if not converged:
@@ -118,10 +122,13 @@ def registration_messages(
         found.append(f"ambiguous: a pose {ambiguity:.0f} deg away fits as well (a symmetric "
                      "object?): result.ambiguity")
     for motion in free_motions:
-        meaning = ("a symmetry of the source: the pose is right up to it" if motion.symmetric
-                   else "no symmetry of the source: the data do not fix the pose along it")
-        notes.append(f"free: the clouds fit as well {motion.describe()}, {meaning} "
-                     "(result.free_motions)")
+        if motion.symmetric:
+            notes.append(f"free: the clouds fit as well {motion.describe()}, a symmetry of "
+                         "the source: the pose is right up to it (result.free_motions)")
+        else:
+            found.append(f"underdetermined: the clouds fit as well {motion.describe()}, which "
+                         "is no symmetry of the source: the data do not fix the pose along "
+                         "it (result.free_motions)")
     for text in found:
         logger.warning(text)
     for text in notes:

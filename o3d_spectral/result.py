@@ -79,8 +79,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         tolerance (:mod:`o3d_spectral.free_motions`): a turn about an axis or a slide
         along one, how far each way (degrees or metres), and whether it is a symmetry of
         the source (the pose is right up to it) or a motion the data do not fix. In the
-        target's frame; empty for most poses. Each is a note (:attr:`notes`); the
-        confidence does not count them.
+        target's frame; empty for most poses. A symmetry is a note (:attr:`notes`), any
+        other a warning; the confidence does not count them.
     pose_evidence : PoseEvidence or None
         What the confidence was computed from (:class:`o3d_spectral.pose_evidence.PoseEvidence`):
         the fits, the plane distance, the normals' agreement, the free-space violation.

@@ -130,3 +130,22 @@ def test_the_local_call_has_no_rival():
     target, _ = turned(source, 10.0, (0.0, 0.0, 1.0), (0.01, 0.0, 0.0))
     result = o3d_spectral.registration_spectral(source, target, VOXEL)
     assert result.rival_fit == 0.0 and result.fit > 0.95
+
+
+def test_a_free_motion_is_a_note_where_it_is_a_symmetry_and_a_warning_where_not():
+    """A free turn the whole source does not resist (a can about its axis): a note; a
+    free slide it resists (a box along the one face two views share): a warning."""
+    from o3d_spectral.free_motions import FreeMotion
+
+    reading = o3d_spectral.io.cloud.CloudReading()
+    turn = FreeMotion("turn", np.array([0.0, 0.0, 1.0]), np.zeros(3), (-180.0, 180.0), True)
+    slide = FreeMotion("slide", np.array([1.0, 0.0, 0.0]), np.zeros(3), (-0.04, 0.05), False)
+    found, notes = diagnostics.registration_messages(
+        converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
+        free_motions=(turn, slide))
+    assert notes == ["free: the clouds fit as well turned about an axis along (0.00, 0.00, "
+                     "1.00) by -180 to 180 deg, a symmetry of the source: the pose is right "
+                     "up to it (result.free_motions)"]
+    assert found == ["underdetermined: the clouds fit as well slid along (1.00, 0.00, 0.00) "
+                     "by -0.04 to 0.05 m, which is no symmetry of the source: the data do "
+                     "not fix the pose along it (result.free_motions)"]
