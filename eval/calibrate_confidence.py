@@ -41,12 +41,15 @@ refits on the rest (leave one out): a fold's figures say how the confidence does
 object (a kind of data) it was not fitted on; ``folds.csv`` holds each fold's figures and
 ``summary.csv`` the pooled held-back ones (with ``--docs``, also
 ``docs/data/calibrate_confidence_{object,group}_{folds,summary}.csv`` and
-``calibrate_confidence_silent.csv``). ``--instances k`` draws other instances of
+``calibrate_confidence_silent.csv``, and the library's reliability diagram per group,
+``docs/img/confidence_reliability_groups.png``). ``--instances k`` draws other instances of
 every group (other seeds, other rotations of the real pairs). ``silent.csv`` counts the
 library's calls as they came back: wrong poses with confidence >= 0.5 and no warning of
 any kind, and right poses carrying a warning (of any kind, and about the pose).
 
 Writes to ``--out``: ``rows.csv`` (one row per call), ``summary.csv`` (pooled figures),
+``reliability_groups.png`` (the library's confidence against the share of right poses,
+per group),
 ``groups.csv`` (per group, held-back), ``coefficients.json`` (the refit) and
 ``reliability.png``; with ``--docs``, also ``docs/data/calibrate_confidence_*.csv``, the
 coefficients (``docs/data/calibrate_confidence_coefficients.json``) and
@@ -449,6 +452,40 @@ def plot(bins: list[dict], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def plot_groups(rows: list[dict], p: np.ndarray, right: np.ndarray, path: Path) -> None:
+    """A reliability diagram per group: the library's confidence binned by tenths against
+    the share of right poses, each bin's count beside it."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    columns = 4
+    lines = -(-len(groups) // columns)
+    fig, axes = plt.subplots(lines, columns, figsize=(3.0 * columns, 3.0 * lines),
+                             sharex=True, sharey=True, squeeze=False)
+    for ax, group in zip(axes.flat, groups, strict=False):
+        mask = np.array([r["group"] == group for r in rows])
+        shown = [b for b in reliability(p[mask], right[mask]) if b["n"]]
+        ax.plot([0, 1], [0, 1], color="0.6", linestyle="--", linewidth=0.8)
+        ax.plot([b["predicted"] for b in shown], [b["observed"] for b in shown], marker="o")
+        for b in shown:
+            ax.annotate(str(b["n"]), (b["predicted"], b["observed"]),
+                        textcoords="offset points", xytext=(3, -9), fontsize=7)
+        ax.axvline(confidence_model.WARN_BELOW, color="tab:red", linewidth=0.6)
+        ax.set(xlim=(0, 1), ylim=(-0.05, 1.05),
+               title=f"{group} ({int(mask.sum())}, {int((right[mask] == 0).sum())} wrong)")
+        ax.title.set_fontsize(8)
+    for ax in axes.flat[len(groups):]:
+        ax.set_visible(False)
+    fig.supxlabel("confidence (bin mean)")
+    fig.supylabel("share of right poses")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def rounded(row: dict) -> dict:
     """``row`` as written to a CSV file: floats with 6 decimals, the rest as text."""
     return {k: (f"{v:.6f}" if isinstance(v, float) else str(v)) for k, v in row.items()}
@@ -493,6 +530,10 @@ def main(argv: list[str] | None = None) -> int:
     right = np.array([int(r["right"]) for r in rows])
     X = design(rows)
     library = library_confidence(X, corroborated(rows))
+    plot_groups(rows, library, right, args.out / "reliability_groups.png")
+    if args.docs and args.split != "half":
+        plot_groups(rows, library, right,
+                    ROOT / "docs" / "img" / "confidence_reliability_groups.png")
     if "warnings" in rows[0]:
         write_rows(args.out / "silent.csv", [rounded(silent(rows, right))])
     if args.split != "half":
