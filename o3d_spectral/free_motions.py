@@ -39,7 +39,7 @@ from .io.rows import known, lengths
 from .spectra import so3
 
 __all__ = ["FreeMotion", "Overlap", "free_motions", "unresisted_motions", "constraint_rows",
-           "leaves_motion_free", "SUPPORT_FLOOR", "PLANE_SLACK",
+           "leaves_motion_free", "support_floor", "turn_axis_point", "SUPPORT_FLOOR", "PLANE_SLACK",
            "STAYING", "TURN_TOLERANCE", "SLIDE_TOLERANCE", "SLIDE_ROTATION", "SLIDE_REACH",
            "MAX_STEPS"]
 
@@ -153,6 +153,21 @@ def constraint_rows(
     return np.hstack([np.cross((points - centre) / scale, normals), normals]), centre, scale
 
 
+def support_floor(matrix: NDArray[np.float64]) -> float:
+    """:data:`SUPPORT_FLOOR` times the mean constraint over the six motions of a
+    constraint ``matrix`` (6, 6; the rows' ``rows.T @ rows``, :func:`constraint_rows`):
+    a motion constrained less is not resisted."""
+    return SUPPORT_FLOOR * float(np.trace(matrix)) / 6.0
+
+
+def turn_axis_point(rotation: NDArray[np.float64], translation: NDArray[np.float64],
+                    centre: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A point on the axis of the small motion ``p -> p + rotation x (p - centre) +
+    translation`` (``rotation`` non-zero, radians; metres): ``centre + rotation x
+    translation / |rotation|^2``, the foot of the axis nearest ``centre``."""
+    return centre + np.cross(rotation, translation) / float(np.linalg.norm(rotation)) ** 2
+
+
 def leaves_motion_free(points: NDArray[np.float64], normals: NDArray[np.float64]) -> bool:
     """Whether a surface leaves some rigid motion free: the least constraint its points
     put on a motion is under :data:`SUPPORT_FLOOR` times the mean over the six motions
@@ -165,7 +180,7 @@ def leaves_motion_free(points: NDArray[np.float64], normals: NDArray[np.float64]
     """
     rows, _, _ = constraint_rows(points, normals)
     every = rows.T @ rows
-    return bool(np.linalg.eigvalsh(every)[0] < SUPPORT_FLOOR * np.trace(every) / 6.0)
+    return bool(np.linalg.eigvalsh(every)[0] < support_floor(every))
 
 
 def unresisted_motions(
@@ -194,7 +209,7 @@ def unresisted_motions(
     rows, centre, scale = constraint_rows(points, normals)
     matrix = rows.T @ rows
     values, vectors = np.linalg.eigh(matrix)
-    span = vectors[:, values < SUPPORT_FLOOR * np.trace(matrix) / 6.0]  # (6, k)
+    span = vectors[:, values < support_floor(matrix)]  # (6, k)
     if span.shape[1] == 0:
         return []
     _, strength, directions = np.linalg.svd(span[:3], full_matrices=True)  # rotation parts
@@ -207,8 +222,7 @@ def unresisted_motions(
     for motion in (span @ directions[turning].T).T:
         w, u = motion[:3] / scale, motion[3:]
         u = u - basis @ (basis.T @ u)  # a slide added to a turn is still free
-        rate = float(np.linalg.norm(w))
-        found.append(("turn", w / rate, centre + np.cross(w, u) / rate**2))
+        found.append(("turn", w / float(np.linalg.norm(w)), turn_axis_point(w, u, centre)))
     return found
 
 
@@ -350,4 +364,4 @@ def _resists(points: NDArray[np.float64], normals: NDArray[np.float64], kind: st
         motion = np.r_[np.zeros(3), axis]
     motion /= np.linalg.norm(motion)
     matrix = rows.T @ rows
-    return bool(motion @ matrix @ motion >= SUPPORT_FLOOR * np.trace(matrix) / 6.0)
+    return bool(motion @ matrix @ motion >= support_floor(matrix))

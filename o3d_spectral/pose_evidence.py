@@ -48,7 +48,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .free_motions import SUPPORT_FLOOR, FreeMotion, constraint_rows, free_motions
+from .free_motions import FreeMotion, constraint_rows, free_motions, support_floor
 from .io.cloud import MIN_POINTS
 from .io.rows import known
 
@@ -234,7 +234,8 @@ def least_supported_motion(
     ``L``, the points' RMS distance to ``c``, makes ``w`` a length). With ``A`` the sum of
     ``r``'s squared coefficients over every point and ``B`` over the inliers, both
     6 x 6, the share along a motion ``x`` is ``x^T B x / x^T A x``; the least is the
-    smallest generalised eigenvalue of ``(B, A)``, each plus :data:`SUPPORT_FLOOR` times
+    smallest generalised eigenvalue of ``(B, A)``, each plus
+    :data:`~o3d_spectral.free_motions.SUPPORT_FLOOR` times
     ``trace(A) / 6`` on its diagonal, and its eigenvector the motion (Gelfand et al.'s
     geometric stability, 2003).
 
@@ -253,7 +254,7 @@ def least_supported_motion(
     """
     rows, centre, scale = constraint_rows(points, normals)
     every, inliers = rows.T @ rows, rows[inlier].T @ rows[inlier]
-    floor = SUPPORT_FLOOR * np.trace(every) / 6.0 * np.eye(6)
+    floor = support_floor(every) * np.eye(6)
     values, vectors = scipy.linalg.eigh(inliers + floor, every + floor)
     motion = vectors[:, 0] / max(float(np.linalg.norm(vectors[:, 0])), 1e-300)
     return Motion(float(min(max(values[0], 0.0), 1.0)), motion[:3] / scale, motion[3:], centre,

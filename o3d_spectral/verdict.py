@@ -27,7 +27,7 @@ from .free_motions import FreeMotion
 from .io.cloud import CloudReading
 from .pose_evidence import PoseEvidence, pose_evidence
 from .stepper import MovingCloud, SpectralStepper
-from .verification import ASYMMETRIC, FixedPoints, ambiguity, measure
+from .verification import FixedPoints, ambiguity, measure
 
 __all__ = ["Verdict", "verdict"]
 
@@ -108,7 +108,7 @@ def verdict(
     warnings, notes = registration_messages(
         converged=converged, max_iteration=max_iteration, readings=readings,
         confidence=probability, ambiguity=angle,
-        symmetric_rival=readings["source"].view is None and rival.self_match < ASYMMETRIC,
+        symmetric_rival=readings["source"].view is None and rival.symmetric,
         free_motions=evidence.free_motions)
     return Verdict(measured.fit, measured.rival_fit, angle, evidence, probability, warnings,
                    notes)

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ..free_motions import turn_axis_point
 from ..pose_evidence import Motion
 from ..spectra import so3
 
@@ -63,7 +64,7 @@ def turn_axis(motion: Motion | None) -> Axis | None:
     turn, slide = rate * motion.radius, abs(float(motion.translation @ direction))
     if turn < MIN_ROTATION_SHARE * np.hypot(turn, slide):
         return None
-    return Axis(direction, motion.centre + np.cross(motion.rotation, motion.translation) / rate**2)
+    return Axis(direction, turn_axis_point(motion.rotation, motion.translation, motion.centre))
 
 
 def holds_every_motion(support: float) -> bool:
