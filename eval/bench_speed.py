@@ -236,7 +236,7 @@ def dragon_model_tasks(rotations: int, limit: int) -> Iterator[Task]:
             seed = real.rotation_seed(case.name, r)
             turned, _ = real.randomly_rotated(case, seed)
             yield Task("dragon_model", f"{case.name}_r{r}", turned.source, turned.target,
-                       real.VOXEL_SIZES["dragon_24"], seed, real.case_score(turned))
+                       real.DRAGON_VOXEL, seed, real.case_score(turned))
             count += 1
 
 

@@ -104,9 +104,9 @@ GROUPS = ("partial", "occluded", "cluttered", "crop_in_scene", "half_crop", *TUR
 #: The evidence columns of a row, as ``result.pose_evidence`` names them.
 EVIDENCE = ("fit", "target_fit", "plane_distance", "normal_agreement", "free_space",
             "rival_fit", "ambiguous", "rival_self_match", "two_views", "motion_support")
-#: How the warnings about the returned pose start (the others are about the inputs or
-#: the law's convergence).
-POSE_WARNINGS = ("low confidence", "ambiguous", "underdetermined")
+#: The kinds (:func:`kind_of`) of the warnings about the returned pose (the others are
+#: about the inputs or the law's convergence).
+POSE_WARNINGS = ("low_confidence", "ambiguous", "underdetermined")
 #: Bins of the reliability diagram.
 BINS = 10
 #: Elevation of the turntable pairs' views, degrees.
@@ -164,7 +164,7 @@ def cases(group: str, n: int, rotations: int, instances: int = 0) -> Iterator[Ca
                 turned, _ = real.randomly_rotated(
                     case, real.rotation_seed(case.name, r + rotations * instances))
                 yield Case(group, case.name, turned.source, turned.target,
-                           real.VOXEL_SIZES.get(case.group, real.VOXEL_SIZES["dragon_24"]),
+                           real.VOXEL_SIZES.get(case.group, real.DRAGON_VOXEL),
                            real.case_score(turned))
     elif group == "wrong_object":
         for i, name in enumerate(picks):
@@ -230,8 +230,7 @@ def register(case: Case) -> dict:
            "seconds": seconds, "confidence": result.confidence,
            "warned": int(any("may be wrong" in w for w in result.warnings)),
            "warnings": len(result.warnings),
-           "pose_warnings": sum(any(w.startswith(k) for k in POSE_WARNINGS)
-                                for w in result.warnings),
+           "pose_warnings": sum(kind_of(w) in POSE_WARNINGS for w in result.warnings),
            "warning_kinds": " ".join(kind_of(w) for w in result.warnings),
            "notes": len(result.notes),
            "source_view": int(result.source_reading.view is not None),
@@ -429,12 +428,10 @@ def reliability(p: np.ndarray, right: np.ndarray) -> list[dict]:
             for b in range(BINS)]
 
 
-def plot(bins: list[dict], path: Path, title: str) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+def draw_reliability(ax, bins: list[dict]) -> None:
+    """The reliability diagram of ``bins`` (:func:`reliability`) on ``ax``: the diagonal,
+    each bin's mean confidence against its share of right poses with its count beside it,
+    and the warning's threshold."""
     ax.plot([0, 1], [0, 1], color="0.6", linestyle="--", label="calibrated")
     shown = [b for b in bins if b["n"]]
     ax.plot([b["predicted"] for b in shown], [b["observed"] for b in shown], marker="o",
@@ -443,6 +440,15 @@ def plot(bins: list[dict], path: Path, title: str) -> None:
         ax.annotate(str(b["n"]), (b["predicted"], b["observed"]), textcoords="offset points",
                     xytext=(4, -10), fontsize=7)
     ax.axvline(confidence_model.WARN_BELOW, color="tab:red", linewidth=0.8)
+
+
+def plot(bins: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    draw_reliability(ax, bins)
     ax.set(xlim=(0, 1), ylim=(0, 1), xlabel="predicted confidence (bin mean)",
            ylabel="observed share of right poses", title=title)
     ax.legend(loc="upper left", fontsize=8)
@@ -466,13 +472,7 @@ def plot_groups(rows: list[dict], p: np.ndarray, right: np.ndarray, path: Path) 
                              sharex=True, sharey=True, squeeze=False)
     for ax, group in zip(axes.flat, groups, strict=False):
         mask = np.array([r["group"] == group for r in rows])
-        shown = [b for b in reliability(p[mask], right[mask]) if b["n"]]
-        ax.plot([0, 1], [0, 1], color="0.6", linestyle="--", linewidth=0.8)
-        ax.plot([b["predicted"] for b in shown], [b["observed"] for b in shown], marker="o")
-        for b in shown:
-            ax.annotate(str(b["n"]), (b["predicted"], b["observed"]),
-                        textcoords="offset points", xytext=(3, -9), fontsize=7)
-        ax.axvline(confidence_model.WARN_BELOW, color="tab:red", linewidth=0.6)
+        draw_reliability(ax, reliability(p[mask], right[mask]))
         ax.set(xlim=(0, 1), ylim=(-0.05, 1.05),
                title=f"{group} ({int(mask.sum())}, {int((right[mask] == 0).sum())} wrong)")
         ax.title.set_fontsize(8)

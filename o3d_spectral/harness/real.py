@@ -41,6 +41,7 @@ from o3d_spectral.synthetic.symmetry import Symmetry, surface_symmetry
 
 __all__ = [
     "DRAGON_ANGLES",
+    "DRAGON_VOXEL",
     "GROUPS",
     "NORMAL_MODES",
     "YCBV_CLASSES",
@@ -73,10 +74,10 @@ GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "dragon_96", "
 #: ("oriented"), as Open3D's ``estimate_normals()`` alone leaves them ("unoriented"), or
 #: none (the method estimates its own).
 NORMAL_MODES: tuple[str, ...] = ("oriented", "unoriented", "none")
-#: Voxel size (metres) each group is registered at: the dragon is 0.2 m across, the
-#: YCB-Video objects are the suites' objects (8 mm, as the suites).
-VOXEL_SIZES: dict[str, float] = {"dragon_24": 0.005, "dragon_48": 0.005, "dragon_72": 0.005,
-                                 "dragon_96": 0.005, "dragon_120": 0.005,
+#: Voxel size (metres) of the dragon's scans at any step: the dragon is 0.2 m across.
+DRAGON_VOXEL = 0.005
+#: Voxel size (metres) each group is registered at: the YCB-Video objects are the suites'.
+VOXEL_SIZES: dict[str, float] = {**{g: DRAGON_VOXEL for g in GROUPS if g.startswith("dragon")},
                                  "ycbv_crop": 0.008, "ycbv_frame": 0.008}
 #: Success: symmetry-aware rotation error under 5 degrees and translation error (at the
 #: source's centroid) under 1 cm (:func:`case_errors`).
