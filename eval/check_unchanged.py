@@ -4,9 +4,11 @@ Runs the local call (the law from the identity) and the global call (the search 
 of SO(3)) with default settings on the first N instances of each group of
 ``eval/bench_speed.py`` (the four suites, crops in their scene, the wide tabletop and the
 real cases, one seeded rotation each), and either records their transformations
-(``--record``) or compares them with a recording (``--compare``), reporting the largest
-absolute difference per group and call. A behaviour-preserving change gives differences
-at rounding level (under 1e-9).
+with their confidences and what each call said (its warnings and notes) (``--record``),
+or compares them with a recording (``--compare``), reporting the largest absolute
+difference per group and call and the calls whose words changed. A
+behaviour-preserving change gives differences at rounding level (under 1e-9) and the
+same words.
 
 Usage:
     o3d-spectral make-suite full --n 12 --seed 0 --out suites12/full   # and the others
@@ -40,15 +42,19 @@ CALLS = {
 
 
 def run(suites: Path, count: int, groups: tuple[str, ...] = ALL_GROUPS) -> dict[str, np.ndarray]:
-    """Transformations (count, 4, 4) per ``"<group>/<call>"``."""
+    """Per ``"<group>/<call>"``: the transformations (count, 4, 4); per
+    ``"<group>/<call>/confidence"`` their confidences (count,); per ``"<group>/<call>/said"``
+    each call's warnings and notes, one string a call (count,)."""
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     out = {}
     for group in groups:
         tasks = group_tasks(group, suites, rotations=1, limit=count)
         for call_name, call in CALLS.items():
-            out[f"{group}/{call_name}"] = np.stack(
-                [np.asarray(call(t.source, t.target, t.voxel).transformation) for t in tasks]
-            )
+            results = [call(t.source, t.target, t.voxel) for t in tasks]
+            key = f"{group}/{call_name}"
+            out[key] = np.stack([np.asarray(r.transformation) for r in results])
+            out[f"{key}/confidence"] = np.array([r.confidence for r in results])
+            out[f"{key}/said"] = np.array(["\n".join([*r.warnings, *r.notes]) for r in results])
             print(f"{group:14s} {call_name:7s} {len(tasks)} done", flush=True)
     return out
 
@@ -73,27 +79,32 @@ def main() -> int:
         ).stdout.strip()
         args.record.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(args.record, commit=commit, **found)
-        print(f"recorded {len(found)} groups at commit {commit} to {args.record}")
+        print(f"recorded {len(found) // 3} groups and calls at commit {commit} to {args.record}")
         return 0
     reference = np.load(args.compare)
     print(f"reference recorded at commit {reference['commit']}")
-    worst = 0.0
+    worst, reworded = 0.0, 0
     for key, value in found.items():
         if key not in reference:
             print(f"{key:20s} not in the reference")
-            worst = np.inf
+            worst = worst if key.endswith(("/confidence", "/said")) else np.inf
             continue
         expected = reference[key]
         n = min(len(expected), len(value))
-        per_instance = np.abs(expected[:n] - value[:n]).reshape(n, -1).max(axis=1)
+        if key.endswith("/said"):
+            changed = int(np.sum(expected[:n] != value[:n]))
+            reworded += changed
+            print(f"{key:27s} {n:3d} instances  {changed} said otherwise")
+            continue
+        per_instance = np.abs(expected[:n] - value[:n]).reshape(n, -1).max(axis=1, initial=0.0)
         diff = float(per_instance.max())
         worst = max(worst, diff)
         changed = int(np.sum(per_instance > TOLERANCE))
-        print(f"{key:20s} {n:3d} instances  max |difference| {diff:.3g}  "
+        print(f"{key:27s} {n:3d} instances  max |difference| {diff:.3g}  "
               f"({changed} over {TOLERANCE:g})")
     print(f"largest difference {worst:.3g} ({'within' if worst <= TOLERANCE else 'over'} "
-          f"{TOLERANCE:g})")
-    return 0 if worst <= TOLERANCE else 1
+          f"{TOLERANCE:g}); {reworded} calls said otherwise")
+    return 0 if worst <= TOLERANCE and not reworded else 1
 
 
 if __name__ == "__main__":
