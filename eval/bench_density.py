@@ -50,9 +50,9 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
+from o3d_spectral.common.stages import GLOBAL_STAGES
 from o3d_spectral.harness.writers import write_figure, write_rows
 from o3d_spectral.plots import pyplot
-from o3d_spectral.stages import GLOBAL_STAGES
 from o3d_spectral.synthetic.instance import SceneOptions
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sensor import CameraIntrinsics

@@ -3,7 +3,7 @@
 Two sets of scans, each registered into its first scan's frame by
 :func:`o3d_spectral.registration_multiway` (``spectral``) and by the same pose-graph
 pipeline on pairs registered by lean FPFH-RANSAC (``fpfh_ransac_lean``,
-:func:`o3d_spectral.multiway.poses_from_pairs`; its pairs' ``fit`` is their fitness at
+:func:`o3d_spectral.multiway.registration.poses_from_pairs`; its pairs' ``fit`` is their fitness at
 one voxel, no rival):
 
 * ``dragon``: the Stanford dragon's eight turntable scans (5 mm voxel), each turned about
@@ -42,7 +42,7 @@ from o3d_spectral.harness import real
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.methods import get_method
 from o3d_spectral.harness.writers import write_rows
-from o3d_spectral.multiway import pair_list, poses_from_pairs
+from o3d_spectral.multiway.registration import pair_list, poses_from_pairs
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.instance import SceneOptions
 from o3d_spectral.synthetic.models import model_names

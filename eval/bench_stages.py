@@ -2,7 +2,7 @@
 
 Runs ``o3d_spectral.registration_spectral_global`` (defaults) and lean FPFH-RANSAC on the
 instances of ``eval/bench_speed.py`` (its tasks, one thread) and reads each stage's time
-from the call's own record, ``result.stage_times`` (:mod:`o3d_spectral.stages`): prepare,
+from the call's own record, ``result.stage_times`` (:mod:`o3d_spectral.common.stages`): prepare,
 candidates (the SO(3) correlation, the placements and, in a scene, the focused searches),
 confirm, sweep (two scans not confirmed by the other candidates), climbs, ascent (two
 scans only), polish (the ICP polish and Open3D's scoring). A stage a call skipped counts
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 import o3d_spectral
+from o3d_spectral.common.stages import GLOBAL_STAGES
 from o3d_spectral.harness.writers import write_rows
-from o3d_spectral.stages import GLOBAL_STAGES
 
 REFERENCE_COLUMN = "lean FPFH-RANSAC"
 COLUMNS = [*GLOBAL_STAGES, "total", REFERENCE_COLUMN]

@@ -26,9 +26,9 @@ Groups (each instance a *unit*; a real pair turned several ways is one unit):
 
 Split: within each group, the units are shuffled with ``--seed`` and the first half (odd
 counts: one more) fit the model, the rest are held back. The model: logistic regression
-on the features of ``o3d_spectral.confidence_model.features``, standardised, with an L2
+on the features of ``o3d_spectral.evidence.confidence.features``, standardised, with an L2
 penalty ``--penalty`` on the weights (not the intercept); its coefficients are printed in
-raw units, as ``o3d_spectral.confidence_model`` holds them.
+raw units, as ``o3d_spectral.evidence.confidence`` holds them.
 
 On the held-back part it reports, for the refitted model and for the library's own
 ``result.confidence``: the AUROC between right and wrong poses, the warning's precision
@@ -80,12 +80,12 @@ import open3d as o3d
 from scipy.optimize import minimize
 
 import o3d_spectral
-from o3d_spectral import confidence_model
+from o3d_spectral.evidence import confidence as confidence_model
+from o3d_spectral.evidence.pose import PoseEvidence
 from o3d_spectral.harness import real
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.metrics import instance_score
 from o3d_spectral.harness.writers import write_rows
-from o3d_spectral.pose_evidence import PoseEvidence
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid, sample_rotation
 from o3d_spectral.synthetic.scenes import make_instance
@@ -244,7 +244,7 @@ def register(case: Case) -> dict:
 
 
 def kind_of(warning: str) -> str:
-    """A warning's kind, one word (``o3d_spectral.diagnostics``)."""
+    """A warning's kind, one word (``o3d_spectral.evidence.diagnostics``)."""
     for key, kind in (("control law stopped", "not_converged"), ("oriented again", "reoriented"),
                       ("read two-sided", "two_sided"), ("nearly all alike", "flat"),
                       ("low confidence", "low_confidence"), ("ambiguous", "ambiguous"),

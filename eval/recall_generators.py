@@ -54,7 +54,8 @@ import open3d as o3d  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from o3d_spectral import GlobalSearchOption  # noqa: E402
-from o3d_spectral.diagnostics import may_be_wrong  # noqa: E402
+from o3d_spectral.common.stages import StageClock  # noqa: E402
+from o3d_spectral.evidence.diagnostics import may_be_wrong  # noqa: E402
 from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import symmetric_rotation_error  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
@@ -64,7 +65,6 @@ from o3d_spectral.registration import placed_result, searched  # noqa: E402
 from o3d_spectral.run import DEFAULT_REFINEMENT, Run, finish, start  # noqa: E402
 from o3d_spectral.search import GlobalSearch  # noqa: E402
 from o3d_spectral.search.candidates import swept_candidates  # noqa: E402
-from o3d_spectral.stages import StageClock  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
 from o3d_spectral.synthetic.turntable import (  # noqa: E402
     TURNTABLE_ANGLES,

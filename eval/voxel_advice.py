@@ -23,7 +23,7 @@ Tables printed (Markdown), and written with the rows (``rows.csv``) to ``--out``
    (one process, every core);
 2. failure signal, per group and overall, on the hand-chosen runs and on the suggested
    ones: how many poses were wrong, and for the may-be-wrong warning
-   (``o3d_spectral.diagnostics.may_be_wrong`` of the rows' ``confidence``, the call's own
+   (``o3d_spectral.evidence.diagnostics.may_be_wrong`` of the rows' ``confidence``, the call's own
    rule: each run checks it against the warning logged) and ``fitness`` under
    0.3 and 0.5, how many were flagged, the precision (share of the
    flagged that were wrong) and the recall (share of the wrong that were flagged).
@@ -45,13 +45,13 @@ from pathlib import Path
 import numpy as np
 from failure_signal import rates  # the same precision and recall as its table
 
-from o3d_spectral.diagnostics import may_be_wrong
+from o3d_spectral.evidence.diagnostics import may_be_wrong
 
 CONDITIONS = ("full", "partial", "occluded", "cluttered")
 #: The suites' hand-chosen voxel size (metres): the paper's, as the benchmarks run them.
 SUITE_VOXEL = 0.008
 FITNESS_THRESHOLDS = (0.3, 0.5)
-WARNING_TEXT = "may be wrong"  # in the confidence's warning (o3d_spectral.diagnostics)
+WARNING_TEXT = "may be wrong"  # in the confidence's warning (o3d_spectral.evidence.diagnostics)
 
 
 def tasks(groups: list[str], suites: Path | None, start: int, limit: int, rotations: int):

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 import o3d_spectral
-from o3d_spectral.pose_errors import rotation_error, translation_error
+from o3d_spectral.common.pose_errors import rotation_error, translation_error
 from o3d_spectral.synthetic import load_model, make_instance
 
 VOXEL_SIZE = 0.008  # metres

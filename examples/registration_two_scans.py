@@ -15,8 +15,8 @@ import numpy as np
 import open3d as o3d
 
 import o3d_spectral
+from o3d_spectral.common.pose_errors import rotation_error, translation_error
 from o3d_spectral.harness.real import dragon_pose, real_dir
-from o3d_spectral.pose_errors import rotation_error, translation_error
 
 VOXEL_SIZE = 0.005  # metres: the dragon is about 20 cm long
 

@@ -23,26 +23,26 @@ and bandwidth conventions.
 import logging as _logging
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_attributes, lazy_dir
+from .common.lazy import lazy_attributes, lazy_dir
 
 if TYPE_CHECKING:  # the names below, for type checkers; imported on first access at run time
-    from .law import IterationRecord
-    from .multiway import registration_multiway
-    from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
+    from .law.loop import IterationRecord
+    from .law.prepared import PreparedSource, prepare
+    from .law.prepared_target import PreparedTarget, prepare_target
+    from .law.stepper import Evaluation, MovingCloud, SpectralStepper
+    from .multiway.options import MultiwayOption, MultiwayResult, PairwiseRecord
+    from .multiway.registration import registration_multiway
     from .options import (
         CloudOption,
         RefinementOption,
         SpectralConvergenceCriteria,
         SpectralRegistrationOption,
     )
-    from .prepared import PreparedSource, prepare
-    from .prepared_target import PreparedTarget, prepare_target
     from .registration import registration_spectral, registration_spectral_global
     from .result import SpectralRegistrationResult
-    from .search_options import GlobalSearchOption
-    from .stepper import Evaluation, MovingCloud, SpectralStepper
-    from .voxel import suggest_voxel_size
-    from .voxel_by_trial import VoxelTrial, voxel_trial
+    from .search.options import GlobalSearchOption
+    from .voxel.by_trial import VoxelTrial, voxel_trial
+    from .voxel.suggestion import suggest_voxel_size
 
 __all__ = [
     "registration_spectral",
@@ -77,27 +77,27 @@ __getattr__ = lazy_attributes(
     {
         "registration_spectral": "registration",
         "registration_spectral_global": "registration",
-        "registration_multiway": "multiway",
-        "MultiwayOption": "multiway_options",
-        "MultiwayResult": "multiway_options",
-        "PairwiseRecord": "multiway_options",
-        "prepare": "prepared",
-        "prepare_target": "prepared_target",
-        "PreparedTarget": "prepared_target",
-        "suggest_voxel_size": "voxel",
-        "voxel_trial": "voxel_by_trial",
-        "VoxelTrial": "voxel_by_trial",
-        "PreparedSource": "prepared",
+        "registration_multiway": "multiway.registration",
+        "MultiwayOption": "multiway.options",
+        "MultiwayResult": "multiway.options",
+        "PairwiseRecord": "multiway.options",
+        "prepare": "law.prepared",
+        "prepare_target": "law.prepared_target",
+        "PreparedTarget": "law.prepared_target",
+        "suggest_voxel_size": "voxel.suggestion",
+        "voxel_trial": "voxel.by_trial",
+        "VoxelTrial": "voxel.by_trial",
+        "PreparedSource": "law.prepared",
         "SpectralRegistrationResult": "result",
         "SpectralRegistrationOption": "options",
-        "GlobalSearchOption": "search_options",
+        "GlobalSearchOption": "search.options",
         "RefinementOption": "options",
         "CloudOption": "options",
         "SpectralConvergenceCriteria": "options",
-        "IterationRecord": "law",
-        "SpectralStepper": "stepper",
-        "MovingCloud": "stepper",
-        "Evaluation": "stepper",
+        "IterationRecord": "law.loop",
+        "SpectralStepper": "law.stepper",
+        "MovingCloud": "law.stepper",
+        "Evaluation": "law.stepper",
         "__version__": "_version",  # importlib.metadata takes longer than the rest
     },
 )

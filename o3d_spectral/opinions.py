@@ -12,15 +12,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .law import Climb
+from .common.parallel import thread_map
+from .evidence.fit import fit
+from .evidence.pose import Motion, weakest_motion
+from .evidence.poses import distinct
+from .law.loop import Climb
 from .options import RefinementOption
-from .parallel import thread_map
-from .pose_evidence import Motion, weakest_motion
 from .result import SpectralRegistrationResult
 from .run import Run, finish
 from .search import GlobalSearch
-from .search.confirmation import fit
-from .search.poses import distinct
 from .search.turns import TURN_FINISHES, holds_every_motion, turn_axis, turned
 
 __all__ = ["second_opinion", "turn_opinion"]
@@ -71,7 +71,7 @@ def turn_opinion(
 
     Where that motion is a turn the inliers barely resist, the returned pose is turned
     about its axis by each multiple of ``360 / count`` degrees, each turn polished and
-    measured briefly (:func:`o3d_spectral.search.confirmation.fit`). Of the turns whose
+    measured briefly (:func:`o3d_spectral.evidence.fit.fit`). Of the turns whose
     inliers then hold every motion (:func:`o3d_spectral.search.turns.holds_every_motion`), the
     :data:`TURN_FINISHES` best fitting distinct ones are polished and measured as the
     returned pose was (:func:`o3d_spectral.run.finish`); the most confident result that
@@ -106,7 +106,7 @@ def turn_opinion(
 
 def _weakest_motion(run: Run, pose: NDArray[np.float64]) -> Motion | None:
     """The motion the inliers of the moving cloud at ``pose`` (4, 4, the run's frame)
-    resist least (:func:`o3d_spectral.pose_evidence.weakest_motion`)."""
+    resist least (:func:`o3d_spectral.evidence.pose.weakest_motion`)."""
     stepper = run.stepper
     return weakest_motion(run.moving.points, run.moving.point_normals, pose,
                           stepper.voxel_size, stepper.normals_tree, sensor=stepper.viewpoint,

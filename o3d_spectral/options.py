@@ -6,7 +6,7 @@
 - :class:`RefinementOption`: the point-to-plane polish of the final pose;
 - :class:`SpectralConvergenceCriteria`: when the law stops.
 
-Every field is checked on construction (:mod:`o3d_spectral._checks`): a wrong type raises
+Every field is checked on construction (:mod:`o3d_spectral.common.checks`): a wrong type raises
 ``TypeError``, a NaN or out-of-range value ``ValueError``, each naming the field and the
 value.
 """
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import check_bool, check_choice, check_int, check_number, check_point
+from .common.checks import check_bool, check_choice, check_int, check_number, check_point
 from .spectra.grid import SPLAT_MODES
 
 __all__ = [

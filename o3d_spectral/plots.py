@@ -8,17 +8,17 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import _extras
-from .law import IterationRecord
-from .pose_errors import rotation_error, translation_error
+from .common import extras
+from .common.pose_errors import rotation_error, translation_error
+from .law.loop import IterationRecord
 
 __all__ = ["pyplot", "convergence_errors", "plot_convergence"]
 
 
 def pyplot():
     """``matplotlib.pyplot`` on the non-interactive Agg backend, with an install hint."""
-    _extras.require("matplotlib", "plotting").use("Agg")
-    return _extras.require("matplotlib.pyplot", "plotting")
+    extras.require("matplotlib", "plotting").use("Agg")
+    return extras.require("matplotlib.pyplot", "plotting")
 
 
 def convergence_errors(
@@ -36,7 +36,7 @@ def convergence_errors(
         Source-to-target transformation.
     center : array_like, shape (3,), optional
         Source point at which translation errors are measured (the source frame's origin
-        when omitted; see :func:`o3d_spectral.pose_errors.translation_error`).
+        when omitted; see :func:`o3d_spectral.common.pose_errors.translation_error`).
 
     Returns
     -------

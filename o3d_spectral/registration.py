@@ -7,8 +7,8 @@
   ``registration_fgr_based_on_feature_matching``.
 
 Both prepare the fixed cloud's spectra (:class:`o3d_spectral.SpectralStepper`) and the
-moving cloud, run the law (:mod:`o3d_spectral.law`), polish the pose
-(:mod:`o3d_spectral.refinement`) and measure it as Open3D does (:mod:`o3d_spectral.run`).
+moving cloud, run the law (:mod:`o3d_spectral.law.loop`), polish the pose
+(:mod:`o3d_spectral.refinement.icp`) and measure it as Open3D does (:mod:`o3d_spectral.run`).
 """
 
 from __future__ import annotations
@@ -18,8 +18,10 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .diagnostics import may_be_wrong
-from .law import Climb
+from .common.stages import StageClock
+from .evidence.diagnostics import may_be_wrong
+from .evidence.poses import confidence
+from .law.loop import Climb
 from .opinions import second_opinion, turn_opinion
 from .options import (
     CloudOption,
@@ -31,9 +33,7 @@ from .result import SpectralRegistrationResult
 from .run import DEFAULT_REFINEMENT, Run, check_settings, finish, start
 from .search import GlobalSearch, Ranking
 from .search.confirmation import Confirmation
-from .search.poses import confidence
-from .search_options import GlobalSearchOption
-from .stages import StageClock
+from .search.options import GlobalSearchOption
 
 __all__ = ["SpectralRegistrationResult", "registration_spectral", "registration_spectral_global",
            "Searched", "searched", "placed_result"]

@@ -6,10 +6,10 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from .free_motions import FreeMotion
+from .evidence.free_motions import FreeMotion
+from .evidence.pose import PoseEvidence
 from .io.cloud import CloudReading
-from .law import IterationRecord
-from .pose_evidence import PoseEvidence
+from .law.loop import IterationRecord
 
 __all__ = ["SpectralRegistrationResult"]
 
@@ -49,7 +49,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
     confidence : float
         The probability, in [0, 1], that the pose is right: within 5 degrees and 1 cm
         of the truth at the source's centroid, over the object's symmetries where it has
-        some. A logistic model (:mod:`o3d_spectral.confidence_model`) of the pose's
+        some. A logistic model (:mod:`o3d_spectral.evidence.confidence`) of the pose's
         evidence (:attr:`pose_evidence`), calibrated on development registrations and
         checked on held-back ones (docs/errors.md); under 0.5 a warning says the pose may
         be wrong. Both calls.
@@ -62,27 +62,27 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         How well the returned pose fits, in [0, 1]: the share of the source's points (one
         per voxel) that the target's sensor would see there (all of them when the target
         is not a single view) lying within one voxel of the target after a short
-        point-to-plane polish (:func:`o3d_spectral.search.confirmation.fit`). Unlike
+        point-to-plane polish (:func:`o3d_spectral.evidence.fit.fit`). Unlike
         ``fitness`` it does not count the back of a model, which a view cannot hold, as
-        missed (:mod:`o3d_spectral.verification`). One of the confidence's inputs.
+        missed (:mod:`o3d_spectral.evidence.verification`). One of the confidence's inputs.
     rival_fit : float
         Global call only: the best ``fit`` of a hypothesis that ends over 10 degrees from
         the returned pose (0 when there is none, and for the local call).
     ambiguity : float or None
         Where a distinct pose fits as well as the returned one (within
-        :data:`o3d_spectral.verification.AMBIGUITY_MARGIN`): the angle between them,
+        :data:`o3d_spectral.evidence.verification.AMBIGUITY_MARGIN`): the angle between them,
         degrees (a symmetric object, or one the target shows too little of to tell);
         None otherwise. A warning says so; a note where the rival is the returned pose
         turned by a symmetry of the whole source (a model, not a view): both are right.
     free_motions : tuple of FreeMotion
         The motions of the source that leave its fit unchanged farther than a pose's
-        tolerance (:mod:`o3d_spectral.free_motions`): a turn about an axis or a slide
+        tolerance (:mod:`o3d_spectral.evidence.free_motions`): a turn about an axis or a slide
         along one, how far each way (degrees or metres), and whether it is a symmetry of
         the source (the pose is right up to it) or a motion the data do not fix. In the
         target's frame; empty for most poses. A symmetry is a note (:attr:`notes`), any
         other a warning; the confidence does not count them.
     pose_evidence : PoseEvidence or None
-        What the confidence was computed from (:class:`o3d_spectral.pose_evidence.PoseEvidence`):
+        What the confidence was computed from (:class:`o3d_spectral.evidence.pose.PoseEvidence`):
         the fits, the plane distance, the normals' agreement, the free-space violation.
     source_reading, target_reading : CloudReading
         How each cloud was read: where its normals came from (given, re-oriented,
@@ -93,7 +93,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         as that sensor would see it (back faces culled); None when matched whole.
     warnings : list of str
         What was logged as a warning during the call: what the caller should check (the
-        pose may be wrong, an input was not as expected; :mod:`o3d_spectral.diagnostics`).
+        pose may be wrong, an input was not as expected; :mod:`o3d_spectral.evidence.diagnostics`).
     notes : list of str
         What was logged as a note (``logging.INFO``): how the data were read, a symmetric
         twin of the pose, its free motions; nothing to check.
@@ -104,7 +104,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         distinct alternative, and ``history`` is empty.
     stage_times : dict of str to float
         Seconds spent in each stage of the call, in the order they ran
-        (:mod:`o3d_spectral.stages`): ``prepare``, ``candidates``, ``confirm``,
+        (:mod:`o3d_spectral.common.stages`): ``prepare``, ``candidates``, ``confirm``,
         ``sweep``, ``climbs``, ``ascent``, ``polish`` for the global call (those it ran);
         ``prepare``, ``law``, ``polish`` for the local one.
     """

@@ -1,9 +1,9 @@
 """What both registration calls share: their run's state, its start and its finish.
 
 :func:`start` checks the arguments, centres the clouds on the target and prepares both
-(:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.stepper.MovingCloud`);
-:func:`finish` polishes a pose (:mod:`o3d_spectral.refinement`), judges it once
-(:mod:`o3d_spectral.verdict`: its fit, evidence, confidence, warnings and notes), measures
+(:class:`o3d_spectral.SpectralStepper`, :class:`o3d_spectral.law.stepper.MovingCloud`);
+:func:`finish` polishes a pose (:mod:`o3d_spectral.refinement.icp`), judges it once
+(:mod:`o3d_spectral.evidence.verdict`: its fit, evidence, confidence, warnings and notes), measures
 it as Open3D does, and fills the result in the caller's frame.
 """
 
@@ -16,32 +16,32 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from . import centring
-from ._checks import (
+from .common.checks import (
     check_instance,
     check_number,
     check_reach,
     check_transformation,
     check_voxel_size,
 )
+from .evidence.verdict import Verdict, verdict
 from .io.cloud import CloudArrays, CloudReading, as_arrays, extent, to_legacy
 from .io.density import read_at_voxels
 from .io.units import check_same_units
-from .law import Climb, climb
+from .law import centring
+from .law.loop import Climb, climb
+from .law.prepared import PreparedSource
+from .law.prepared_target import PreparedTarget
+from .law.stepper import MovingCloud, SpectralStepper
 from .options import (
     CloudOption,
     RefinementOption,
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from .prepared import PreparedSource
-from .prepared_target import PreparedTarget
-from .refinement import near_pose, refine, with_normals
+from .refinement.icp import near_pose, refine, with_normals
 from .result import SpectralRegistrationResult
+from .search.options import GlobalSearchOption
 from .search.situation import Situation, situation
-from .search_options import GlobalSearchOption
-from .stepper import MovingCloud, SpectralStepper
-from .verdict import Verdict, verdict
 
 __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
            "REFINEMENT_MARGIN"]
@@ -148,9 +148,10 @@ def finish(
     transformation: NDArray[np.float64], refinement: RefinementOption | None,
     max_correspondence_distance: float | None,
 ) -> SpectralRegistrationResult:
-    """Polish ``transformation`` (4, 4), judge it once (:func:`o3d_spectral.verdict.verdict`),
-    measure it as Open3D does (``fitness``, ``inlier_rmse``, ``correspondence_set``), and
-    fill ``result`` in the caller's frame."""
+    """Polish ``transformation`` (4, 4), judge it once
+    (:func:`o3d_spectral.evidence.verdict.verdict`), measure it as Open3D does
+    (``fitness``, ``inlier_rmse``, ``correspondence_set``), and fill ``result`` in the
+    caller's frame."""
     source, target = to_legacy(run.source), to_legacy(run.target)
     fixed = with_normals(target, *run.fixed_normals)  # the polish's and the verdict's
     pose = _polished(run, source, fixed, transformation, refinement)
@@ -233,7 +234,7 @@ def refined(
     run: Run, source: o3d.geometry.PointCloud, fixed: o3d.geometry.PointCloud,
     transformation: NDArray[np.float64], refinement: RefinementOption,
 ) -> NDArray[np.float64]:
-    """:func:`o3d_spectral.refinement.refine` against the target with normals (``fixed``)
+    """:func:`o3d_spectral.refinement.icp.refine` against the target with normals (``fixed``)
     near the pose: the part of a scene within the source's size of it (the polish moves
     the source far less)."""
     margin = max(extent(run.source.points)[1], REFINEMENT_MARGIN * run.stepper.voxel_size)

@@ -10,17 +10,17 @@ from pathlib import Path
 
 import pytest
 
-from o3d_spectral import _bundled
+from o3d_spectral.common import bundled
 from o3d_spectral.synthetic import models
 
-PACKAGE = Path(_bundled.__file__).resolve().parent
+PACKAGE = Path(bundled.__file__).resolve().parents[1]
 
 
 def test_data_is_found_inside_the_package():
-    objects = _bundled.data_folder("objects")
+    objects = bundled.data_folder("objects")
     assert objects == PACKAGE / "datasets" / "objects"
     assert "mug" in models.model_names()
-    assert _bundled.data_folder("no such folder") is None
+    assert bundled.data_folder("no such folder") is None
 
 
 def test_environment_variable_comes_first_and_errors_name_it(monkeypatch, tmp_path):
@@ -28,7 +28,7 @@ def test_environment_variable_comes_first_and_errors_name_it(monkeypatch, tmp_pa
     monkeypatch.setenv("O3D_SPECTRAL_DATA", str(tmp_path))
     assert models.objects_dir() == tmp_path and models.model_names() == ["cube"]
     with pytest.raises(FileNotFoundError, match="O3D_SPECTRAL_MISSING"):
-        _bundled.bundled_folder("objects", "O3D_SPECTRAL_MISSING", lambda folder: False, "x")
+        bundled.bundled_folder("objects", "O3D_SPECTRAL_MISSING", lambda folder: False, "x")
 
 
 def _zipped_package(path: Path) -> Path:

@@ -1,5 +1,5 @@
-"""The calibrated confidence (o3d_spectral.pose_evidence, o3d_spectral.confidence_model)
-and the ambiguity report (o3d_spectral.verification.ambiguity), through both calls."""
+"""The calibrated confidence (o3d_spectral.evidence.pose, o3d_spectral.evidence.confidence)
+and the ambiguity report (o3d_spectral.evidence.verification.ambiguity), through both calls."""
 
 import json
 from pathlib import Path
@@ -9,11 +9,11 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import confidence_model
-from o3d_spectral.free_motions import SUPPORT_FLOOR
+from o3d_spectral.evidence import confidence as confidence_model
+from o3d_spectral.evidence.free_motions import SUPPORT_FLOOR
+from o3d_spectral.evidence.pose import PoseEvidence, motion_support, pose_evidence
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.metrics import instance_score
-from o3d_spectral.pose_evidence import PoseEvidence, motion_support, pose_evidence
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud, rigid
 from o3d_spectral.synthetic.scenes import make_instance

@@ -1,5 +1,5 @@
 """The early confirmation of the global search (o3d_spectral.search.confirmation), the
-situation that decides the stages, and the stage record of a call (o3d_spectral.stages)."""
+situation that decides the stages, and the stage record of a call (o3d_spectral.common.stages)."""
 
 import logging
 
@@ -8,6 +8,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
+from o3d_spectral.evidence import fit as fitting
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.harness.metrics import instance_score
 from o3d_spectral.search import Kind, confirmation, situation
@@ -45,12 +46,12 @@ def prepared(source, target):
 def test_fit_is_whole_at_the_truth_and_low_half_a_turn_away(drill):
     source, target, T = drill
     stepper, moving = prepared(source, target)
-    pose, share, close = confirmation.fit(stepper, moving, target, T)
+    pose, share, close = fitting.fit(stepper, moving, target, T)
     assert share > 0.95 and close > 0.5
     assert rotation_error(pose, T) < 1.0
     flipped = T.copy()
     flipped[:3, :3] = T[:3, :3] @ so3.exp(np.array([0.0, 0.0, np.pi]))
-    _, wrong, wrong_close = confirmation.fit(stepper, moving, target, flipped)
+    _, wrong, wrong_close = fitting.fit(stepper, moving, target, flipped)
     assert wrong < share - 0.1
     assert wrong_close < close
 
@@ -84,12 +85,12 @@ def _decided(stepper, moving, target, T, best, *rivals):
     truth = Hypothesis(
         T[:3, :3], T[:3, :3] @ moving.centroid + T[:3, 3], 0.5, 0.0, ("truth",))
     ranked, fits = [truth], {}
-    fits[truth.key] = confirmation.Fit(T, *best)
+    fits[truth.key] = fitting.Fit(T, *best)
     for k, measures in enumerate(rivals):
         turn = so3.exp(np.array([0.0, np.deg2rad(20.0 + k), 0.0])) @ T[:3, :3]
         rival = Hypothesis(turn, truth.centre, 0.5, 0.0, ("rival", k))
         ranked.append(rival)
-        fits[rival.key] = confirmation.Fit(rival.transformation(moving.centroid), *measures)
+        fits[rival.key] = fitting.Fit(rival.transformation(moving.centroid), *measures)
     return confirmation.confirm(stepper, moving, target, ranked, fits=fits)
 
 
@@ -172,9 +173,9 @@ def test_a_crop_into_its_scene_is_searched_as_an_object_in_a_scene():
 
 
 def test_closer_needs_a_clear_lead_in_closeness():
-    placed = confirmation.Fit(np.eye(4), 0.5, 0.40)
-    assert confirmation.closer(placed, confirmation.Fit(np.eye(4), 0.9, 0.40 - 0.06))
-    assert not confirmation.closer(placed, confirmation.Fit(np.eye(4), 0.4, 0.40 - 0.04))
+    placed = fitting.Fit(np.eye(4), 0.5, 0.40)
+    assert confirmation.closer(placed, fitting.Fit(np.eye(4), 0.9, 0.40 - 0.06))
+    assert not confirmation.closer(placed, fitting.Fit(np.eye(4), 0.4, 0.40 - 0.04))
 
 
 @pytest.mark.slow
@@ -193,7 +194,7 @@ def test_a_closer_placed_pose_is_returned_instead_of_the_climbed_one(monkeypatch
 def test_a_stage_outside_the_named_stages_is_refused():
     """Stage names are one list (``stages.GLOBAL_STAGES``, ``LOCAL_STAGES``) that the
     benchmarks read: a misspelt stage cannot slip into ``result.stage_times``."""
-    from o3d_spectral.stages import GLOBAL_STAGES, StageClock
+    from o3d_spectral.common.stages import GLOBAL_STAGES, StageClock
 
     clock = StageClock()
     with clock.stage(GLOBAL_STAGES[1]):

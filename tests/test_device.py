@@ -12,7 +12,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral._extras import MissingExtraError
+from o3d_spectral.common.extras import MissingExtraError
 from o3d_spectral.correlation import (
     ArrayBackend,
     BatchedCorrelation,

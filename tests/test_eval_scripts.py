@@ -23,7 +23,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from o3d_spectral.voxel_by_trial import VOXEL_LADDER
+from o3d_spectral.voxel.by_trial import VOXEL_LADDER
 
 ROOT = Path(__file__).resolve().parents[1]
 EVAL = ROOT / "eval"
@@ -338,7 +338,7 @@ def test_bench_speed(speed_run):
 
 
 def test_bench_stages(suites, tmp_path):
-    from o3d_spectral.stages import GLOBAL_STAGES
+    from o3d_spectral.common.stages import GLOBAL_STAGES
 
     printed = run("bench_stages.py", "--suites", suites, "--groups", "full", "--limit", 1,
                   "--out", tmp_path, cwd=tmp_path)

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from o3d_spectral import _extras
 from o3d_spectral.cli import main
+from o3d_spectral.common import extras
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,16 +39,16 @@ def one_error_line(capsys: pytest.CaptureFixture) -> str:
 def test_the_extras_named_are_the_packages_extras():
     tomllib = pytest.importorskip("tomllib", reason="tomllib is in Python 3.11 and later")
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
-    assert set(_extras.EXTRAS) <= set(pyproject["project"]["optional-dependencies"])
-    assert _extras.extra_of("matplotlib.pyplot") == "harness"
-    assert _extras.extra_of("dask.distributed") == "cluster"
-    assert _extras.extra_of("numpy") is None
+    assert set(extras.EXTRAS) <= set(pyproject["project"]["optional-dependencies"])
+    assert extras.extra_of("matplotlib.pyplot") == "harness"
+    assert extras.extra_of("dask.distributed") == "cluster"
+    assert extras.extra_of("numpy") is None
 
 
 def test_require_names_the_extra(monkeypatch):
     hide(monkeypatch, "tqdm", "pybullet")
-    with pytest.raises(_extras.MissingExtraError) as caught:
-        _extras.require("tqdm", "the progress bar")
+    with pytest.raises(extras.MissingExtraError) as caught:
+        extras.require("tqdm", "the progress bar")
     assert isinstance(caught.value, ImportError) and caught.value.extra == "harness"
     assert str(caught.value) == ("the progress bar needs the 'harness' extra (tqdm is missing): "
                                  "pip install 'o3d-spectral[harness]'")

@@ -1,11 +1,11 @@
-"""The motions a pose's overlap leaves free (o3d_spectral.free_motions): exact cases, in
+"""The motions a pose's overlap leaves free (o3d_spectral.evidence.free_motions): exact cases, in
 any frame and any units."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from o3d_spectral.free_motions import FreeMotion, free_motions, unresisted_motions
+from o3d_spectral.evidence.free_motions import FreeMotion, free_motions, unresisted_motions
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.sampling import rigid
 

@@ -30,7 +30,7 @@ from o3d_spectral import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
-from o3d_spectral._checks import check_transformation
+from o3d_spectral.common.checks import check_transformation
 from tests.conftest import sample_model
 
 OPTION_CLASSES = [SpectralRegistrationOption, CloudOption, GlobalSearchOption,

@@ -1,19 +1,22 @@
 """Imports point one way, and no module reaches into another's private names.
 
-The layers, lowest first: the core (the method and its maths, at the package's top level
-and in ``io`` and ``spectra``), ``synthetic`` (the scene generator and the models'
-symmetries), then ``harness`` (evaluation) and ``servo`` (visual servoing), which do not
-use each other, and ``cli`` over all of them. A module may import from its own layer and
-the layers below it. Within the core, ``io`` (clouds as given) imports only itself and the
-package's helpers, ``spectra`` (the pure maths) only itself, ``io`` and those helpers, and
-``correlation`` (the batched phase correlation, free of Open3D) only itself, ``spectra`` and
-the helpers; the method, at the top level, uses them all. Read from the source with ``ast``:
-nothing is imported.
+The layers, lowest first: the core (the method and its maths), ``synthetic`` (the scene
+generator and the models' symmetries), then ``harness`` (evaluation) and ``servo`` (visual
+servoing), which do not use each other, and ``cli`` over all of them. A module may import
+from its own layer and the layers below it.
+
+Within the core, its parts in the same way, lowest first (:data:`CORE_ORDER`): ``common``
+(checks, optional libraries, threads), ``io`` (clouds as given), ``spectra`` (the pure
+maths), ``correlation`` (the batched phase correlation, free of Open3D), the user's
+settings (``options``), ``law`` (the paper's control law on voxel grids),
+``refinement`` (the polish), ``evidence`` (what the data say about a pose), ``search``,
+the calls (the package's other top-level modules: one registration from its clouds to
+its result), ``voxel`` (the voxel size, chosen by trial with the calls) and ``multiway``.
+A part imports itself and the parts below it; ``correlation`` not ``io``, so that it runs
+where Open3D is not installed. Read from the source with ``ast``: nothing is imported.
 
 A private name (one starting with an underscore, not a dunder) is its module's own: no
-other module, script or test imports it or reads it as an attribute. Private *modules*
-(``_checks``, ``_extras``, ...) are the package's shared internals: importing one is allowed,
-its private names are not.
+other module, script or test imports it or reads it as an attribute.
 """
 
 from __future__ import annotations
@@ -37,15 +40,11 @@ ALLOWED = {
 }
 
 
-#: Within the core: what ``io`` and ``spectra`` may import besides themselves.
-CORE_ALLOWED = {
-    "io": {"helpers"},
-    "spectra": {"io", "helpers"},
-    "correlation": {"spectra", "helpers"},
-}
-#: The package's helper modules, which any module may use: its private internals, and
-#: ``parallel`` (work on threads).
-HELPERS = {"_checks", "_extras", "_lazy", "_bundled", "parallel"}
+#: The core's parts, lowest first: each imports only itself and the parts before it.
+CORE_ORDER = ("common", "io", "spectra", "correlation", "options", "law", "refinement",
+              "evidence", "search", "calls", "voxel", "multiway")
+#: Parts below a part that it still does not import.
+CORE_APART = {"correlation": {"io"}}
 
 
 def module_name(path: Path) -> str:
@@ -61,12 +60,12 @@ def layer(module: str) -> str:
 
 
 def core_part(module: str) -> str:
-    """``io``, ``spectra``, ``correlation``, ``helpers`` or ``method`` for a module of the
-    core."""
+    """The part of the core a module of it belongs to (:data:`CORE_ORDER`): its folder,
+    ``options``, or ``calls`` for the package's other top-level modules."""
     parts = module.split(".")
-    if len(parts) > 1 and parts[1] in CORE_ALLOWED:
+    if len(parts) > 1 and parts[1] in CORE_ORDER:
         return parts[1]
-    return "helpers" if len(parts) > 1 and parts[1] in HELPERS else "method"
+    return "calls"
 
 
 def is_module(dotted: str) -> bool:
@@ -195,18 +194,13 @@ def test_imports_point_down_the_layers(path):
         }
     )
     assert not wrong, f"the {own} layer imports {wrong}"
-    part = core_part(module_name(path)) if own == "core" else None
-    if part in CORE_ALLOWED:
-        wrong = sorted(
-            {
-                target
-                for target in package_imports(path)
-                if target != "o3d_spectral"
-                and core_part(target) != part
-                and core_part(target) not in CORE_ALLOWED[part]
-            }
-        )
-        assert not wrong, f"o3d_spectral.{part} imports {wrong}"
+    if own != "core" or path == PACKAGE / "__init__.py":
+        return
+    part = core_part(module_name(path))
+    below = set(CORE_ORDER[: CORE_ORDER.index(part) + 1]) - CORE_APART.get(part, set())
+    wrong = sorted({target for target in package_imports(path)
+                    if layer(target) == "core" and core_part(target) not in below})
+    assert not wrong, f"o3d_spectral's {part} imports {wrong}"
 
 
 def test_no_private_name_is_reached_from_another_module():
@@ -235,9 +229,10 @@ def test_the_checks_see_what_they_forbid(tmp_path, monkeypatch):
     assert layer(module_name(core)) == "core"
     assert {layer(target) for target in package_imports(core)} == {"harness"}
     assert core_part("o3d_spectral.spectra.so3") == "spectra"
-    assert core_part("o3d_spectral._checks") == "helpers"
-    assert core_part("o3d_spectral.law") == "method"
-    assert "method" not in CORE_ALLOWED["spectra"]  # the maths never use the method
+    assert core_part("o3d_spectral.common.checks") == "common"
+    assert core_part("o3d_spectral.law.loop") == "law"
+    assert core_part("o3d_spectral.run") == "calls"
+    assert CORE_ORDER.index("spectra") < CORE_ORDER.index("law")  # the maths never use the law
     assert core_part("o3d_spectral.correlation.batched") == "correlation"
     reaches = list(private_reaches(core))
     assert len(reaches) == 4, reaches

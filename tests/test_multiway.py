@@ -11,10 +11,10 @@ from scipy.spatial.transform import Rotation
 
 import o3d_spectral
 from o3d_spectral.cli import main
+from o3d_spectral.common.pose_errors import rotation_error, translation_error
 from o3d_spectral.harness import real
-from o3d_spectral.multiway import poses_from_pairs
-from o3d_spectral.multiway_graph import tree_weight
-from o3d_spectral.pose_errors import rotation_error, translation_error
+from o3d_spectral.multiway.graph import tree_weight
+from o3d_spectral.multiway.registration import poses_from_pairs
 from o3d_spectral.synthetic.models import model_path
 from tests.conftest import sample_model
 

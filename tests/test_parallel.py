@@ -1,11 +1,11 @@
 """Threads share out the global search's placements and climbs without changing a bit of
-the result (o3d_spectral.parallel)."""
+the result (o3d_spectral.common.parallel)."""
 
 import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral.parallel import one_open3d_thread, resolved_workers, thread_map
+from o3d_spectral.common.parallel import one_open3d_thread, resolved_workers, thread_map
 from o3d_spectral.synthetic.scenes import make_instance
 from o3d_spectral.synthetic.suite import instance_rng
 

@@ -1,13 +1,13 @@
-"""The final polish (o3d_spectral.refinement): the ICP cut to the points that can correspond."""
+"""The final polish (o3d_spectral.refinement.icp): the ICP cut to the points that can correspond."""
 
 import numpy as np
 import open3d as o3d
 import pytest
 from scipy.spatial import cKDTree
 
-from o3d_spectral import refinement
 from o3d_spectral.harness.real import load_cases
-from o3d_spectral.refinement import REACH, point_to_plane_icp, polish_within_reach
+from o3d_spectral.refinement import icp as refinement
+from o3d_spectral.refinement.icp import REACH, point_to_plane_icp, polish_within_reach
 from o3d_spectral.spectra import so3
 
 VOXEL = 0.005

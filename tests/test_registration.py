@@ -506,8 +506,8 @@ def test_refinement_that_leaves_the_surface_keeps_the_law_pose(monkeypatch):
     The point-to-plane ICP linearised about the camera's origin once slid off the surface
     from it (90 m away); about the posed source it stays on the scene. Should an ICP
     still leave the surface, the polish keeps the pose it was given."""
-    from o3d_spectral import refinement
-    from o3d_spectral.refinement import point_to_plane_refinement, refine
+    from o3d_spectral.refinement import icp as refinement
+    from o3d_spectral.refinement.icp import point_to_plane_refinement, refine
 
     instance = load_scene("occluded_scissors")
     source, target = instance.source, instance.target

@@ -1,14 +1,14 @@
 """Turns of a doubtful pose about the axis its inliers hold least
 (o3d_spectral.search.turns, the ``turns`` stage of the global call), and the surfaces that
-leave a motion free (o3d_spectral.free_motions.leaves_motion_free)."""
+leave a motion free (o3d_spectral.evidence.free_motions.leaves_motion_free)."""
 
 import numpy as np
 import pytest
 
 import o3d_spectral
-from o3d_spectral.free_motions import leaves_motion_free
+from o3d_spectral.evidence.free_motions import leaves_motion_free
+from o3d_spectral.evidence.pose import least_supported_motion
 from o3d_spectral.harness.metrics import instance_score
-from o3d_spectral.pose_evidence import least_supported_motion
 from o3d_spectral.search.turns import MAX_SUPPORT, holds_every_motion, turn_axis, turned
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.sampling import rigid

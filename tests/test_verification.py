@@ -1,5 +1,6 @@
-"""The fit of the returned pose and of its distinct rivals (o3d_spectral.verification),
-and the warnings on the calibrated confidence and on ambiguity (o3d_spectral.diagnostics)."""
+"""The fit of the returned pose and of its distinct rivals
+(o3d_spectral.evidence.verification), and the warnings on the calibrated confidence and on
+ambiguity (o3d_spectral.evidence.diagnostics)."""
 
 import logging
 
@@ -8,7 +9,7 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import diagnostics, verification
+from o3d_spectral.evidence import diagnostics, verification
 from o3d_spectral.harness.errors import rotation_error
 from o3d_spectral.harness.metrics import instance_metrics
 from o3d_spectral.spectra import so3
@@ -135,7 +136,7 @@ def test_the_local_call_has_no_rival():
 def test_a_free_motion_is_a_note_where_it_is_a_symmetry_and_a_warning_where_not():
     """A free turn the whole source does not resist (a can about its axis): a note; a
     free slide it resists (a box along the one face two views share): a warning."""
-    from o3d_spectral.free_motions import FreeMotion
+    from o3d_spectral.evidence.free_motions import FreeMotion
 
     reading = o3d_spectral.io.cloud.CloudReading()
     turn = FreeMotion("turn", np.array([0.0, 0.0, 1.0]), np.zeros(3), (-180.0, 180.0), True)

@@ -7,10 +7,10 @@ import open3d as o3d
 import pytest
 
 import o3d_spectral
-from o3d_spectral import voxel
 from o3d_spectral.cli import main
 from o3d_spectral.harness.errors import rotation_error
 from o3d_spectral.spectra import so3
+from o3d_spectral.voxel import suggestion as voxel
 from tests.conftest import sample_model
 
 

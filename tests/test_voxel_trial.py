@@ -1,4 +1,4 @@
-"""The voxel size chosen by trial (o3d_spectral.voxel_by_trial)."""
+"""The voxel size chosen by trial (o3d_spectral.voxel.by_trial)."""
 
 from types import SimpleNamespace
 
@@ -7,9 +7,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import o3d_spectral
-from o3d_spectral import voxel_by_trial as trial_module
 from o3d_spectral.synthetic.sampling import model_cloud, point_cloud
 from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.voxel import by_trial as trial_module
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ Errors are handled once, in :func:`main`: a command raises and ``main`` prints o
 ``o3d-spectral COMMAND: error: ...`` (the traceback too with ``-vv``) and returns the exit
 code: 0 success, 1 a failed run (any exception while running), 2 a usage error (argparse's
 own, or :class:`UsageError` from a command's checks of its options). A command that needs
-an optional extra checks for it first (:func:`o3d_spectral._extras.require_modules`); a
+an optional extra checks for it first (:func:`o3d_spectral.common.extras.require_modules`); a
 missing module of an extra is reported on one line naming the extra, exit code 1. Stops
 (:mod:`~o3d_spectral.cli.stops`): Ctrl-C 130 and SIGTERM 143 with one line, a reader of
 the output gone 141 quietly.
@@ -31,7 +31,6 @@ import time
 import traceback
 from typing import NoReturn
 
-from o3d_spectral._extras import MissingExtraError, missing_extra
 from o3d_spectral.cli._output import (
     is_terminal,
     logging_to_stderr,
@@ -46,6 +45,7 @@ from o3d_spectral.cli.stops import (
     stop_cause,
     stop_status,
 )
+from o3d_spectral.common.extras import MissingExtraError, missing_extra
 
 __all__ = ["COMMANDS", "UsageError", "build_parser", "is_terminal", "main", "program",
            "results", "show_progress", "versions"]

@@ -17,7 +17,7 @@ log = logging.getLogger(__name__)
 def _model_names() -> list[str]:
     """The bundled models' names, without importing Open3D (``--help`` stays quick);
     empty when no bundled models are found."""
-    from o3d_spectral._bundled import bundled_folder
+    from o3d_spectral.common.bundled import bundled_folder
 
     try:
         folder = bundled_folder("objects", "O3D_SPECTRAL_DATA",
@@ -80,7 +80,7 @@ def _plot(instance, result, args: argparse.Namespace) -> Path | None:
     """Write the convergence plot, ending at the polished result; None, after a one-line
     hint, without matplotlib."""
     from o3d_spectral import plots
-    from o3d_spectral._extras import MissingExtraError
+    from o3d_spectral.common.extras import MissingExtraError
 
     try:
         return plots.plot_convergence(

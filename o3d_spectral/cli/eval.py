@@ -189,7 +189,7 @@ def _add_success_and_plugin_arguments(parser: argparse.ArgumentParser) -> None:
 def eval_command(args: argparse.Namespace) -> int:
     import time
 
-    from o3d_spectral._extras import require_modules
+    from o3d_spectral.common.extras import require_modules
 
     require_modules("this command", "pandas", "tqdm")
     if args.cluster is not None:

@@ -211,7 +211,7 @@ def _write_all(out: Path, writers: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from o3d_spectral._extras import require_modules
+    from o3d_spectral.common.extras import require_modules
     from o3d_spectral.io.folder_lock import folder_lock
 
     _check_args(args)

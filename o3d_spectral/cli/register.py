@@ -178,7 +178,7 @@ def _read_cloud(path: Path, *, drop_nan: bool = False):
 def _read_init(path: Path) -> np.ndarray:
     """The 4x4 initial transformation in the text file ``path``, checked (and a nearly
     rigid one made rigid) as the library checks ``init``, errors naming option and file."""
-    from o3d_spectral._checks import check_transformation
+    from o3d_spectral.common.checks import check_transformation
 
     if not path.is_file():
         raise FileNotFoundError(f"--init: no such file: {path}")
@@ -295,8 +295,8 @@ def run(args: argparse.Namespace) -> int:
     import open3d as o3d
 
     import o3d_spectral
-    from o3d_spectral._checks import check_voxel_size
     from o3d_spectral.cli import UsageError, results
+    from o3d_spectral.common.checks import check_voxel_size
 
     auto = args.voxel_size in ("auto", "rule")
     if not auto:

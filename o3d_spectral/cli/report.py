@@ -25,7 +25,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def report_command(args: argparse.Namespace) -> int:
-    from o3d_spectral._extras import require_modules
+    from o3d_spectral.common.extras import require_modules
 
     require_modules("this command", "pandas", "matplotlib")
     from o3d_spectral.cli import results

@@ -203,7 +203,7 @@ def _trial_job(job: tuple) -> tuple[dict, list[tuple[float, bool]]]:
 
 def _limit_threads(threads: int) -> None:
     """In a trial's worker process: at most ``threads`` threads for its libraries and its
-    global searches (:func:`o3d_spectral.parallel.resolved_workers`)."""
+    global searches (:func:`o3d_spectral.common.parallel.resolved_workers`)."""
     os.environ["OMP_NUM_THREADS"] = str(threads)
 
 
@@ -211,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
-    from o3d_spectral._extras import require_modules
+    from o3d_spectral.common.extras import require_modules
 
     require_modules("this command", "pybullet", "pybullet_data", "matplotlib", "tqdm")
     from tqdm import tqdm

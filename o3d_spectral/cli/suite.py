@@ -69,8 +69,8 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from o3d_spectral._extras import require_modules
     from o3d_spectral.cli import UsageError
+    from o3d_spectral.common.extras import require_modules
 
     if Path(args.out).exists() and not Path(args.out).is_dir():  # before any work
         raise UsageError(f"--out {args.out}: a file, not a folder")
@@ -98,7 +98,7 @@ def make_suite_command(args: argparse.Namespace) -> int:
 
 
 def show_suite_command(args: argparse.Namespace) -> int:
-    from o3d_spectral._extras import require_modules
+    from o3d_spectral.common.extras import require_modules
 
     require_modules("this command", "matplotlib")
     from o3d_spectral.cli import UsageError, results

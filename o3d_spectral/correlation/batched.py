@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..parallel import thread_map
+from ..common.parallel import thread_map
 from ..spectra.fft import next_fast_len
 from ..spectra.translation import gaussian_window, peak_scale
 from .backend import Backend, array_backend

@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from o3d_spectral._extras import require
+from o3d_spectral.common.extras import require
 
 from .backend import ArrayBackend, Backend, CompiledBackend
 

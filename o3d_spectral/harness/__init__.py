@@ -25,7 +25,7 @@ live with the models (:mod:`~o3d_spectral.synthetic.symmetry`), which the scene 
 and the pose errors both use.
 """
 
-from o3d_spectral._lazy import lazy_attributes, lazy_dir
+from o3d_spectral.common.lazy import lazy_attributes, lazy_dir
 
 __all__ = [
     "BopSet",

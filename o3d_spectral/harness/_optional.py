@@ -7,7 +7,7 @@ import contextlib
 import json
 from types import ModuleType
 
-from o3d_spectral import _extras
+from o3d_spectral.common import extras
 
 try:  # not a dependency: reads JSON in a third of the time of json
     from orjson import loads as _fast_loads
@@ -16,9 +16,9 @@ except ImportError:  # pragma: no cover - exercised when orjson is missing
 
 
 def require(module: str) -> ModuleType:
-    """Import ``module`` or raise :class:`~o3d_spectral._extras.MissingExtraError` (an
+    """Import ``module`` or raise :class:`~o3d_spectral.common.extras.MissingExtraError` (an
     ``ImportError``) naming the extra to install."""
-    return _extras.require(module, "the evaluation harness")
+    return extras.require(module, "the evaluation harness")
 
 
 def parse_json(text: str) -> object:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from o3d_spectral.pose_errors import (
+from o3d_spectral.common.pose_errors import (
     angle_from_trace,
     as_rotation,
     as_transform,

@@ -28,7 +28,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from multiprocessing import get_context
 from pathlib import Path
 
-from o3d_spectral import _extras
+from o3d_spectral.common import extras
 
 __all__ = ["SINGLE_THREAD", "StopFlag", "dask_cluster", "interrupt_flag", "local_pool",
            "require_distributed"]
@@ -43,7 +43,7 @@ _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 def require_distributed():
     """``dask.distributed``, or ``ImportError`` saying how to install the ``cluster`` extra."""
-    return _extras.require("dask.distributed", "eval --cluster")
+    return extras.require("dask.distributed", "eval --cluster")
 
 
 @contextlib.contextmanager

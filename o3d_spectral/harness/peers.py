@@ -28,7 +28,7 @@ import numpy as np
 from o3d_spectral.harness import tutorial
 from o3d_spectral.harness.baselines import ICP_DISTANCE_VOXELS, ICP_MAX_ITERATION
 from o3d_spectral.harness.selection import TUNING_SPLIT
-from o3d_spectral.refinement import point_to_plane_refinement
+from o3d_spectral.refinement.icp import point_to_plane_refinement
 
 __all__ = [
     "FPFH_TUNING_GRID",

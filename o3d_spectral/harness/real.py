@@ -33,7 +33,7 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
-from o3d_spectral._bundled import bundled_folder
+from o3d_spectral.common.bundled import bundled_folder
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.io.files import atomic_write_cloud
 from o3d_spectral.spectra import so3

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from o3d_spectral._checks import check_voxel_size
+from o3d_spectral.common.checks import check_voxel_size
 from o3d_spectral.harness._optional import require
 from o3d_spectral.harness.bop import BopSet
 from o3d_spectral.harness.executors import dask_cluster, local_pool

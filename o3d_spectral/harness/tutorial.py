@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.refinement import TUTORIAL_DISTANCE, point_to_plane_refinement
+from o3d_spectral.refinement.icp import TUTORIAL_DISTANCE, point_to_plane_refinement
 
 __all__ = ["FPFH", "REFINEMENT", "LEAN_REFINEMENT", "RANSAC", "open3d_fields",
            "fpfh_features", "global_then_refine", "with_target_normals", "ransac_matcher",
@@ -86,7 +86,7 @@ def global_then_refine(
     """FPFH features of both clouds (``features``: sizes in voxels, the tutorial's by
     default), the global registration ``match(source_down, target_down, source_fpfh,
     target_fpfh)`` (seeded), then the tutorial's point-to-plane refinement on the full
-    clouds (:func:`o3d_spectral.refinement.point_to_plane_refinement`; a target without
+    clouds (:func:`o3d_spectral.refinement.icp.point_to_plane_refinement`; a target without
     normals gets them first, :func:`with_target_normals`), or with ``lean`` on both clouds
     thinned to half the voxel (:func:`lean_refinement`); returns the 4x4 estimate."""
     if not lean:  # before the features: given normals orient the features' estimate

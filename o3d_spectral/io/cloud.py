@@ -13,7 +13,7 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import real_array
+from ..common.checks import real_array
 from .normals import faces, orient, view_direction
 from .rows import bounds, every, lengths
 from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs

@@ -8,9 +8,11 @@ ratio and the unit mix it suggests.
 
 The refusal is an error, not a warning, because no voxel size registers such a pair even
 when it is in one unit (a 3 cm object in a 5 m room, 170x): the smaller cloud must span
-at least 4 voxels (and registers well at 18-44, :data:`o3d_spectral.voxel.VOXELS_ACROSS`),
+at least 4 voxels (and registers well at 18-44,
+:data:`o3d_spectral.voxel.suggestion.VOXELS_ACROSS`),
 so at 50x the larger cloud spans over 200 voxels (over 900 at 18), where placing an
-object over a whole scene already failed at 175 (:data:`o3d_spectral.voxel.MAX_VOXELS_ACROSS`)
+object over a whole scene already failed at 175
+(:data:`o3d_spectral.voxel.suggestion.MAX_VOXELS_ACROSS`)
 and the grids outgrow the default memory budget. A small object in a scene registers
 at the 10-40x of the real RGB-D frames; beyond, cropping the scene around the object does.
 """

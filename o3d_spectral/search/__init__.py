@@ -8,7 +8,7 @@
 - :mod:`~o3d_spectral.search.confirmation`: the early stop on a clearly right pose;
 - :mod:`~o3d_spectral.search.climbs`: the law climbed from the best hypotheses;
 - :mod:`~o3d_spectral.search.ascent`: the phase-correlation peak climbed over rotations;
-- :mod:`~o3d_spectral.search.poses`: when two poses are distinct, the confidence;
+- :mod:`~o3d_spectral.evidence.poses`: when two poses are distinct, the confidence;
 - :mod:`~o3d_spectral.search.global_search`: :class:`GlobalSearch`, the stages as one
   object over their shared state.
 """

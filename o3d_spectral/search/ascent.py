@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..parallel import thread_map
+from ..common.parallel import thread_map
+from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
-from ..stepper import MovingCloud, SpectralStepper
 from .candidates import span_factor
 from .placement import Hypothesis
 

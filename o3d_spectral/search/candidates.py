@@ -24,11 +24,11 @@ from numpy.typing import NDArray
 
 from ..correlation import BatchedCorrelation, TurnedCloud
 from ..io.cloud import MIN_POINTS
-from ..search_options import GlobalSearchOption
+from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
 from ..spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 from ..spectra.so3fft import CorrelationGrid, correlation_grid, peak_indices
-from ..stepper import MovingCloud, SpectralStepper
+from .options import GlobalSearchOption
 
 __all__ = [
     "Candidate", "egi_candidates", "shell_candidates", "swept_candidates", "span_factor",

@@ -7,9 +7,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..law import Climb, climb
-from ..parallel import thread_map
-from ..stepper import MovingCloud, SpectralStepper
+from ..common.parallel import thread_map
+from ..law.loop import Climb, climb
+from ..law.stepper import MovingCloud, SpectralStepper
 from .placement import Hypothesis
 
 __all__ = ["Climbed", "climbed", "FOCUS_MARGIN"]
@@ -53,10 +53,10 @@ def climbed(
         scene's normals within :data:`FOCUS_MARGIN` voxels of its own points only.
     egi_scored : bool
         Whether the climbs' iterates are scored with the EGI correlation
-        (:class:`o3d_spectral.law.Climb`).
+        (:class:`o3d_spectral.law.loop.Climb`).
     iterations : int
     tolerance, init, start
-        As for :func:`o3d_spectral.law.climb`.
+        As for :func:`o3d_spectral.law.loop.climb`.
     workers : int or None
         Threads (all cores when None).
 
@@ -64,7 +64,7 @@ def climbed(
     -------
     list of Climbed
         The climbs, by their best iterate's score
-        (:meth:`o3d_spectral.law.Climb.best_iterate`), best first.
+        (:meth:`o3d_spectral.law.loop.Climb.best_iterate`), best first.
     """
     def climbed_from(hypothesis: Hypothesis) -> Climbed:
         state = hypothesis.climb(moving, egi_scored=egi_scored)

@@ -36,8 +36,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..correlation import BatchedCorrelation, TurnedCloud
+from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
-from ..stepper import MovingCloud, SpectralStepper
 from .candidates import (
     SWEEP_PLACEMENTS,
     SWEEP_SENSOR_ANGLE,

@@ -34,18 +34,19 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
+from ..evidence.fit import Fit, fit
+from ..evidence.poses import distinct
 from ..io.cloud import CloudArrays, to_legacy
-from ..law import Climb, climb
-from ..refinement import thinned, with_normals
-from ..search_options import GlobalSearchOption
-from ..stepper import MovingCloud, SpectralStepper
+from ..law.loop import Climb, climb
+from ..law.stepper import MovingCloud, SpectralStepper
+from ..refinement.icp import thinned, with_normals
 from .ascent import PRESELECT_SPAN, best_ascent
 from .candidates import Candidate, egi_candidates, shell_candidates, swept_candidates
 from .climbs import FOCUS_MARGIN, climbed
-from .confirmation import FIXED_CELL, Confirmation, Fit, closer, confirm, fit
+from .confirmation import FIXED_CELL, Confirmation, closer, confirm
 from .dense import dense_candidates
+from .options import GlobalSearchOption
 from .placement import PLACEMENT_SPAN, Hypothesis, Placements, best_first, place, places
-from .poses import distinct
 from .situation import Situation
 
 __all__ = ["GlobalSearch", "SearchState", "Ranking"]
@@ -70,7 +71,7 @@ class SearchState:
     placements : Placements
         Coarse scores and placements by candidate key.
     fits : dict
-        The confirmation's polished fits (:class:`~o3d_spectral.search.confirmation.Fit`)
+        The confirmation's polished fits (:class:`~o3d_spectral.evidence.fit.Fit`)
         by hypothesis key.
     """
 
@@ -194,7 +195,7 @@ class GlobalSearch:
         """The ``option.climbs`` best of ``ranking`` climbed ``option.hypothesis_iterations``
         times (at most ``max_iteration``), best first, the best climbed on for the rest of
         ``max_iteration``; ``tolerance``, ``init``, ``start`` as for
-        :func:`o3d_spectral.law.climb`."""
+        :func:`o3d_spectral.law.loop.climb`."""
         climbs = climbed(
             self.stepper, self.moving, ranking.hypotheses[: self.option.climbs],
             focus=ranking.focus, egi_scored=not self.situation.two_scans,

@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..law import Climb
-from ..parallel import thread_map
+from ..common.parallel import thread_map
+from ..law.loop import Climb
+from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
 from ..spectra.target_grid import COARSE_FACTOR
-from ..stepper import MovingCloud, SpectralStepper
 from .candidates import Candidate, placed_peaks, span_factor
 
 __all__ = ["Hypothesis", "Placements", "place", "placement_factor", "best_first", "places",
@@ -101,7 +101,7 @@ def place(
     most :data:`PLACEMENT_SPAN` cells, and only the ``coarse_placements`` (when over 0)
     that place best on one :data:`~o3d_spectral.spectra.target_grid.COARSE_FACTOR` times
     as coarse are kept. What is in ``placements`` is not measured again; what is measured
-    is added to it. Placed on ``workers`` threads (:func:`o3d_spectral.parallel.thread_map`).
+    is added to it. Placed on ``workers`` threads (:func:`o3d_spectral.common.parallel.thread_map`).
     """
     factor = 1.0
     if around is None:

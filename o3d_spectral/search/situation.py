@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from ..stepper import MovingCloud, SpectralStepper
+from ..law.stepper import MovingCloud, SpectralStepper
 
 __all__ = ["Kind", "Situation", "situation"]
 

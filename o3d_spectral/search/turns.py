@@ -5,10 +5,10 @@ from different sides has a pose that every spectral score prefers and that is wr
 view turned as if the camera had not moved, where the whole visible body overlaps and the
 handle misses. The search's candidates all lead there, and the right turn is never
 proposed. The pose's evidence tells it: its inliers carry almost none of the constraint
-on one motion (:func:`o3d_spectral.pose_evidence.least_supported_motion`), a turn about
+on one motion (:func:`o3d_spectral.evidence.pose.least_supported_motion`), a turn about
 the body's axis that only the handle resists. Turning the pose about that axis in even
 steps, polishing each turn briefly and measuring it as the confirmation does
-(:func:`o3d_spectral.search.confirmation.fit`) proposes the turns the search could not.
+(:func:`o3d_spectral.evidence.fit.fit`) proposes the turns the search could not.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..free_motions import turn_axis_point
-from ..pose_evidence import Motion
+from ..evidence.free_motions import turn_axis_point
+from ..evidence.pose import Motion
 from ..spectra import so3
 
 __all__ = ["Axis", "turn_axis", "turned", "holds_every_motion", "MIN_ROTATION_SHARE", "MAX_SUPPORT",
@@ -69,7 +69,7 @@ def turn_axis(motion: Motion | None) -> Axis | None:
 
 def holds_every_motion(support: float) -> bool:
     """Whether a pose's inliers carry over :data:`MAX_SUPPORT` of the constraint on the
-    motion they resist least (``support``: a :class:`~o3d_spectral.pose_evidence.Motion`'s
+    motion they resist least (``support``: a :class:`~o3d_spectral.evidence.pose.Motion`'s
     share, or ``PoseEvidence.motion_support``). A turn found by :func:`turned` is kept
     only where it resolves what made the search turn (the handle then lands on the
     handle): a turn that leaves a motion as poorly held only trades one doubtful pose for

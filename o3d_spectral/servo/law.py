@@ -14,15 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..law.stepper import Evaluation, MovingCloud, SpectralStepper
 from ..options import CloudOption, SpectralRegistrationOption
 from ..search import situation
 from ..search.ascent import peak_ascent
 from ..search.candidates import egi_candidates
+from ..search.options import GlobalSearchOption
 from ..search.placement import Placements, place
-from ..search_options import GlobalSearchOption
 from ..spectra import so3
 from ..spectra.rotation import gradient
-from ..stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = ["Step", "ServoLaw"]
 

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..options import CloudOption, SpectralRegistrationOption
-from ..search_options import GlobalSearchOption
+from ..search.options import GlobalSearchOption
 from ..spectra import so3
 from .control import camera_twist, joint_velocities, limit_velocities
 from .law import ServoLaw

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _extras
+from ..common import extras
 from ..spectra import so3
 
 __all__ = ["HAND_EYE", "FLANGE_LINK", "Arm"]
@@ -43,7 +43,7 @@ HAND_EYE = np.array(
 def load_pybullet():
     """pybullet and its data, or ``ImportError`` naming the ``servo`` extra."""
     what = "the servo simulation"
-    return _extras.require("pybullet", what), _extras.require("pybullet_data", what)
+    return extras.require("pybullet", what), extras.require("pybullet_data", what)
 
 
 def _pose(position: ArrayLike, quaternion: ArrayLike, pybullet) -> NDArray[np.float64]:

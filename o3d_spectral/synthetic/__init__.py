@@ -15,7 +15,7 @@ The names below are imported from their modules on first access, so that importi
 module does not import them all.
 """
 
-from o3d_spectral._lazy import lazy_attributes, lazy_dir
+from o3d_spectral.common.lazy import lazy_attributes, lazy_dir
 
 __all__ = [
     "CONDITIONS",

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import open3d as o3d
 
-from o3d_spectral._bundled import bundled_folder
+from o3d_spectral.common.bundled import bundled_folder
 
 __all__ = ["objects_dir", "model_names", "model_path", "load_model"]
 

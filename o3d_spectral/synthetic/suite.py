@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral import _extras
+from o3d_spectral.common import extras
 from o3d_spectral.io.files import atomic_write_cloud, check_cloud_file, check_finite
 from o3d_spectral.io.folder_lock import folder_lock, foreign_entries
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
@@ -110,7 +110,7 @@ def _check_suite_arguments(condition: str, n: int, seed: int, workers: int) -> N
 def _build_all(tasks: list[tuple], workers: int, *, desc: str, progress: bool) -> list[dict]:
     """Manifest entries of ``tasks`` (see :func:`_build`), in order, from ``workers``
     processes (this one when 1)."""
-    tqdm = _extras.require("tqdm", "suite generation (its progress bar)").tqdm
+    tqdm = extras.require("tqdm", "suite generation (its progress bar)").tqdm
     bar = tqdm(total=len(tasks), desc=desc, unit="inst",
                disable=None if progress else True)  # None: on a terminal only
     if workers == 1:

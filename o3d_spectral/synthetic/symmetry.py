@@ -17,7 +17,7 @@ from functools import cache
 import numpy as np
 import open3d as o3d
 
-from o3d_spectral.refinement import point_to_plane_icp
+from o3d_spectral.refinement.icp import point_to_plane_icp
 from o3d_spectral.spectra import so3
 from o3d_spectral.synthetic.models import load_model
 

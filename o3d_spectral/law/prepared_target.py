@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..common.checks import check_instance, check_voxel_size
+from ..correlation.device import Device, parse_device
+from ..io.cloud import CloudArrays, as_arrays
+from ..io.density import read_at_voxels
+from ..options import CloudOption, SpectralRegistrationOption
 from . import centring
-from ._checks import check_instance, check_voxel_size
-from .correlation.device import Device, parse_device
-from .io.cloud import CloudArrays, as_arrays
-from .io.density import read_at_voxels
-from .options import CloudOption, SpectralRegistrationOption
 from .prepared import check_prepared_with
 from .stepper import SpectralStepper
 
@@ -50,7 +50,7 @@ class PreparedTarget:
         The normal estimation and sensor positions its preparation used.
     offset : ndarray, shape (3,), or None
         Where the registration centres clouds given far from the origin, metres
-        (:mod:`o3d_spectral.centring`); None near it.
+        (:mod:`o3d_spectral.law.centring`); None near it.
     stepper : SpectralStepper
         The target's spectra, in that centred frame.
     """

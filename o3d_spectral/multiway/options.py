@@ -9,8 +9,8 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from ._checks import check_bool, check_int, check_number
-from .confidence_model import WARN_BELOW
+from ..common.checks import check_bool, check_int, check_number
+from ..evidence.confidence import WARN_BELOW
 
 __all__ = ["MultiwayOption", "PairwiseRecord", "MultiwayResult"]
 
@@ -37,7 +37,7 @@ class MultiwayOption:
     min_confidence : float, default 0.5
         A kept pair whose calibrated ``confidence`` (the probability that its pose is
         right) is under this, a pair the pairwise call warns about (the threshold of its
-        warning, :data:`o3d_spectral.confidence_model.WARN_BELOW`), joins the spanning
+        warning, :data:`o3d_spectral.evidence.confidence.WARN_BELOW`), joins the spanning
         tree only where no confident pair does, is never odometry-like, and a cloud that
         only such pairs link to the first is reported ``doubtful``. Pairs whose method
         gives no confidence (``PairwiseRecord.confidence`` None) count as confident.
@@ -138,7 +138,7 @@ class PairwiseRecord:
         that gives none.
     determined : bool
         Neither cloud leaves a rigid motion free
-        (:func:`o3d_spectral.free_motions.leaves_motion_free`): a view showing only a
+        (:func:`o3d_spectral.evidence.free_motions.leaves_motion_free`): a view showing only a
         body of revolution (a mug with its handle hidden) fixes a pair's pose up to a turn
         about its axis at best, however well it fits. Set from the clouds.
     """

@@ -22,15 +22,15 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from . import diagnostics
-from ._checks import check_instance, check_voxel_size
-from .io.cloud import CloudArrays
-from .multiway_graph import checked_clouds, maximum_spanning_tree, poses_from_pairs, selected
-from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
-from .parallel import thread_map
-from .prepared import PreparedSource, prepare
-from .prepared_target import PreparedTarget, prepare_target
-from .registration import registration_spectral_global
+from ..common.checks import check_instance, check_voxel_size
+from ..common.parallel import thread_map
+from ..evidence import diagnostics
+from ..io.cloud import CloudArrays
+from ..law.prepared import PreparedSource, prepare
+from ..law.prepared_target import PreparedTarget, prepare_target
+from ..registration import registration_spectral_global
+from .graph import checked_clouds, maximum_spanning_tree, poses_from_pairs, selected
+from .options import MultiwayOption, MultiwayResult, PairwiseRecord
 
 __all__ = ["registration_multiway", "poses_from_pairs", "pair_list", "maximum_spanning_tree",
            "MultiwayOption", "MultiwayResult", "PairwiseRecord"]

@@ -21,12 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import check_instance, check_number, check_voxel_span
-from .io.cloud import CloudArrays, PreparedCloud, as_arrays
-from .io.cloud import prepare as prepare_arrays
-from .io.density import read_at_voxels
-from .io.rows import largest_side
-from .options import CloudOption, SpectralRegistrationOption
+from ..common.checks import check_instance, check_number, check_voxel_span
+from ..io.cloud import CloudArrays, PreparedCloud, as_arrays
+from ..io.cloud import prepare as prepare_arrays
+from ..io.density import read_at_voxels
+from ..io.rows import largest_side
+from ..options import CloudOption, SpectralRegistrationOption
 
 __all__ = ["PreparedSource", "prepare", "prepared_cloud", "check_prepared_with"]
 
@@ -109,7 +109,7 @@ class PreparedSource:
 
     def moved(self, offset: NDArray[np.float64]) -> PreparedCloud:
         """The prepared cloud with its points moved by ``-offset`` (metres; the frame a
-        registration centres far-away clouds in, :mod:`o3d_spectral.centring`)."""
+        registration centres far-away clouds in, :mod:`o3d_spectral.law.centring`)."""
         return dataclasses.replace(self.cloud, points=self.cloud.points - offset,
                                    normal_points=self.cloud.normal_points - offset)
 

@@ -18,9 +18,9 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from .io.cloud import CloudArrays
-from .law import IterationRecord
-from .options import CloudOption
+from ..io.cloud import CloudArrays
+from ..options import CloudOption
+from .loop import IterationRecord
 
 __all__ = ["CENTRE_DISTANCE", "offset", "shifted", "centred_arrays", "centred_option",
            "uncentred_history"]

@@ -35,9 +35,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .io.cloud import as_arrays, dense_bounds
-from .io.rows import bounds
-from .io.units import check_same_units
+from ..io.cloud import as_arrays, dense_bounds
+from ..io.rows import bounds
+from ..io.units import check_same_units
 
 __all__ = ["suggest_voxel_size", "spacing", "SPACINGS", "VOXELS_ACROSS", "MAX_VOXELS_ACROSS",
            "NEIGHBOURS", "SAMPLES", "MAX_TREE_POINTS"]

@@ -11,13 +11,13 @@ not what the call expected. Each is logged on the ``o3d_spectral`` logger
 - a cloud's normals are nearly all alike (a plane): its EGI leaves the rotation about
   them free;
 - the returned pose may be wrong: its calibrated confidence
-  (:mod:`o3d_spectral.confidence_model`) is under :data:`WARN_BELOW`;
+  (:mod:`o3d_spectral.evidence.confidence`) is under :data:`WARN_BELOW`;
 - the returned pose is ambiguous: a distinct pose fits as well
-  (:func:`o3d_spectral.verification.ambiguity`) and the source does not show that the
+  (:func:`o3d_spectral.evidence.verification.ambiguity`) and the source does not show that the
   two are one pose turned by its symmetry (it is a single view, or does not map onto
   itself by the turn between them);
 - the returned pose is underdetermined: the clouds fit as well moved along a motion that
-  the whole source resists (:mod:`o3d_spectral.free_motions`): the data do not fix the
+  the whole source resists (:mod:`o3d_spectral.evidence.free_motions`): the data do not fix the
   pose along it.
 
 A *note* says how the call read the data or what the pose is free to be, with nothing to
@@ -29,7 +29,7 @@ check; each is logged at ``logging.INFO`` and appended to
 - a distinct pose fits as well and is the returned one turned by a symmetry of the whole
   source (a model, not a view: a can's flip, a box's half turn): both are right;
 - the pose's free motions that are a symmetry of the source
-  (:mod:`o3d_spectral.free_motions`): the pose is right up to them.
+  (:mod:`o3d_spectral.evidence.free_motions`): the pose is right up to them.
 """
 
 from __future__ import annotations
@@ -37,9 +37,9 @@ from __future__ import annotations
 import logging
 from typing import NamedTuple
 
-from .confidence_model import WARN_BELOW
+from ..io.cloud import CloudReading
+from .confidence import WARN_BELOW
 from .free_motions import FreeMotion
-from .io.cloud import CloudReading
 
 __all__ = ["FLAT", "WARN_BELOW", "Messages", "may_be_wrong", "registration_messages"]
 
@@ -78,7 +78,7 @@ def registration_messages(
     readings : dict of str to CloudReading
         How each cloud (``"source"``, ``"target"``) was read.
     confidence : float or None
-        The returned pose's calibrated confidence (:mod:`o3d_spectral.confidence_model`);
+        The returned pose's calibrated confidence (:mod:`o3d_spectral.evidence.confidence`);
         None: not measured.
     ambiguity : float or None
         The angle (degrees) to a distinct pose that fits as well, or None.

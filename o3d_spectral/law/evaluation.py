@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .spectra.rotation import RotationGradient
+from ..spectra.rotation import RotationGradient
 
 __all__ = ["Evaluation"]
 

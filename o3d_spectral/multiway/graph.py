@@ -15,13 +15,13 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from ._checks import check_instance, check_voxel_size
-from .free_motions import leaves_motion_free
-from .io.cloud import CloudArrays, as_arrays
-from .io.units import MAX_EXTENT_RATIO, span
-from .multiway_options import MultiwayOption, MultiwayResult, PairwiseRecord
-from .parallel import one_open3d_thread, thread_map
-from .refinement import point_to_plane_icp
+from ..common.checks import check_instance, check_voxel_size
+from ..common.parallel import one_open3d_thread, thread_map
+from ..evidence.free_motions import leaves_motion_free
+from ..io.cloud import CloudArrays, as_arrays
+from ..io.units import MAX_EXTENT_RATIO, span
+from ..refinement.icp import point_to_plane_icp
+from .options import MultiwayOption, MultiwayResult, PairwiseRecord
 
 __all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",
            "maximum_spanning_tree"]
@@ -44,7 +44,7 @@ def poses_from_pairs(
     """Steps 2-5 of :func:`registration_multiway` on pairwise results made by any method.
 
     Open3D's own parallel loops run on one thread meanwhile
-    (:func:`o3d_spectral.parallel.one_open3d_thread`): the result repeats to the bit,
+    (:func:`o3d_spectral.common.parallel.one_open3d_thread`): the result repeats to the bit,
     whatever ``option.workers``.
 
     Parameters

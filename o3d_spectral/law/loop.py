@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .spectra import so3
+from ..spectra import so3
 from .stepper import Evaluation, MovingCloud, SpectralStepper
 
 __all__ = ["IterationRecord", "Climb", "climb", "pose_score"]

@@ -12,7 +12,7 @@ the centre of gravity) :meth:`SpectralStepper.evaluate` returns the full correct
   curvature (:func:`o3d_spectral.spectra.rotation.rotation_step`),
 
 and :meth:`SpectralStepper.increments` applies the gains (eq. control_law). The loop is
-:mod:`o3d_spectral.law`; a stepper holds no state of a run: it serves many moving clouds.
+:mod:`o3d_spectral.law.loop`; a stepper holds no state of a run: it serves many moving clouds.
 """
 
 from __future__ import annotations
@@ -25,20 +25,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ._checks import check_instance, check_voxel_size
-from .correlation.device import device_backend, parse_device
+from ..common.checks import check_instance, check_voxel_size
+from ..correlation.device import device_backend, parse_device
+from ..io.cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
+from ..io.normals import sensor_position
+from ..io.rows import lengths
+from ..options import CloudOption, SpectralRegistrationOption
+from ..spectra import so3
+from ..spectra.egi import coefficients as egi_coefficients
+from ..spectra.egi import facing, harmonics_table, normalise, smooth
+from ..spectra.rotation import curvature_scale, gradient, rotation_step
+from ..spectra.so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
+from ..spectra.target_grid import TargetGrid
 from .evaluation import Evaluation
-from .io.cloud import MIN_POINTS, CloudReading, PreparedCloud, extent
-from .io.normals import sensor_position
-from .io.rows import lengths
-from .options import CloudOption, SpectralRegistrationOption
 from .prepared import prepared_cloud
-from .spectra import so3
-from .spectra.egi import coefficients as egi_coefficients
-from .spectra.egi import facing, harmonics_table, normalise, smooth
-from .spectra.rotation import curvature_scale, gradient, rotation_step
-from .spectra.so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
-from .spectra.target_grid import TargetGrid
 
 __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
 

@@ -5,7 +5,7 @@ A registration's final pose is measured once, at the end of the call
 voxel of the source, the target's down-sampled points near the pose), so the cost is a
 few distance queries on one KD-tree:
 
-- the *fit* (:mod:`o3d_spectral.verification`): the share of the source points the
+- the *fit* (:mod:`o3d_spectral.evidence.verification`): the share of the source points the
   target could show lying within a voxel of it;
 - the *target fit*: the share of the target's points inside the ball of the posed source
   that lie within a voxel of the source (a wrong object leaves much of the target
@@ -24,8 +24,8 @@ few distance queries on one KD-tree:
   body: only the handle resists that turn, and where the handle misses, the inliers
   carry almost none of it while the fit stays high. A motion no point resists (a can's
   turn about its axis, a symmetry) has no share to miss
-  (:data:`~o3d_spectral.free_motions.SUPPORT_FLOOR`);
-- the *free motions* (:mod:`o3d_spectral.free_motions`): the motions those inliers barely
+  (:data:`~o3d_spectral.evidence.free_motions.SUPPORT_FLOOR`);
+- the *free motions* (:mod:`o3d_spectral.evidence.free_motions`): the motions those inliers barely
   resist that go on with their fit unchanged farther than a pose's tolerance, and whether
   the whole source resists them (a symmetry of the source where it does not);
 - the *free-space violation*, only where the target is a single view whose sensor was
@@ -35,7 +35,7 @@ few distance queries on one KD-tree:
   Where the sensor is unknown (a whole model, a crop, a two-sided cloud) it is None: a
   guessed sensor on a crop sees "through" the cut and makes false hits.
 
-:mod:`o3d_spectral.confidence_model` turns these into a probability.
+:mod:`o3d_spectral.evidence.confidence` turns these into a probability.
 """
 
 from __future__ import annotations
@@ -48,9 +48,9 @@ import scipy.linalg
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from ..io.cloud import MIN_POINTS
+from ..io.rows import known
 from .free_motions import FreeMotion, constraint_rows, free_motions, support_floor
-from .io.cloud import MIN_POINTS
-from .io.rows import known
 
 __all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
            "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "motion_support", "Motion",
@@ -94,7 +94,7 @@ class PoseEvidence:
         Share of the source points facing the target's sensor (:data:`MIN_INCIDENCE`)
         that lie in its free space, [0, 1]; None where the target's sensor is unknown.
     rival_fit : float
-        Fit of the best distinct pose found (:func:`o3d_spectral.verification.ambiguity`),
+        Fit of the best distinct pose found (:func:`o3d_spectral.evidence.verification.ambiguity`),
         [0, 1].
     ambiguous : bool
         That pose fits as well as this one.
@@ -110,8 +110,9 @@ class PoseEvidence:
         (:func:`motion_support`; 1 when too few points have normals, 0 when no target
         point lies near the pose).
     free_motions : tuple of FreeMotion
-        The motions that leave the fit unchanged (:func:`o3d_spectral.free_motions.free_motions`),
-        in the frame of ``pose``'s target.
+        The motions that leave the fit unchanged
+        (:func:`o3d_spectral.evidence.free_motions.free_motions`), in the frame of
+        ``pose``'s target.
     """
 
     fit: float
@@ -149,7 +150,7 @@ def pose_evidence(
     voxel_size : float
         Metres; distances are measured in it.
     fit, rival_fit, ambiguous, rival_self_match, two_views
-        As :class:`PoseEvidence` holds them (:mod:`o3d_spectral.verification`).
+        As :class:`PoseEvidence` holds them (:mod:`o3d_spectral.evidence.verification`).
     sensor : ndarray, shape (3,), or None
         The target's sensor (metres) where the target is a single view whose sensor was
         located; None otherwise (no free-space test, no culling).
@@ -235,7 +236,7 @@ def least_supported_motion(
     ``r``'s squared coefficients over every point and ``B`` over the inliers, both
     6 x 6, the share along a motion ``x`` is ``x^T B x / x^T A x``; the least is the
     smallest generalised eigenvalue of ``(B, A)``, each plus
-    :data:`~o3d_spectral.free_motions.SUPPORT_FLOOR` times
+    :data:`~o3d_spectral.evidence.free_motions.SUPPORT_FLOOR` times
     ``trace(A) / 6`` on its diagonal, and its eigenvector the motion (Gelfand et al.'s
     geometric stability, 2003).
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._checks import check_bool, check_choice, check_int
-from .options import SpectralRegistrationOption
+from ..common.checks import check_bool, check_choice, check_int
+from ..options import SpectralRegistrationOption
 
 __all__ = ["GlobalSearchOption"]
 

@@ -3,7 +3,7 @@
 *Right* means within 5 degrees and 1 cm of the truth at the source's centroid, the
 errors taken over the object's symmetries where it has some (a can turned about its
 axis is right). The probability is a logistic model of the pose's evidence
-(:class:`o3d_spectral.pose_evidence.PoseEvidence`)::
+(:class:`o3d_spectral.evidence.pose.PoseEvidence`)::
 
     confidence = 1 / (1 + exp(-z)),   z = BIAS + sum(COEFFICIENTS[name] * feature[name])
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pose_evidence import PoseEvidence
+from .pose import PoseEvidence
 from .verification import ASYMMETRIC
 
 __all__ = ["BIAS", "COEFFICIENTS", "FEATURES", "WARN_BELOW", "features", "confidence",

@@ -3,7 +3,7 @@
 Open3D's ``fitness`` divides the source points near the target by all of them: a model
 registered right onto a single view scores 0.3-0.6 (its back is not in the view), as
 low as many wrong poses. :func:`verify` measures what the view can hold instead, as the
-early confirmation does (:func:`o3d_spectral.search.confirmation.fit`), at the returned pose (the
+early confirmation does (:func:`o3d_spectral.evidence.fit.fit`), at the returned pose (the
 polish's: no further ICP, so the signal costs a few distance queries, not a search): its
 *fit* is the share of the source's one-per-voxel
 points that the target's sensor would see there (facing it,
@@ -16,10 +16,10 @@ hidden behind what the view saw in front of them are not set apart: in a scene t
 would set apart a wrong pose sunk into the table as much as an occluded right one.
 
 The hypotheses of the global search that end over
-distinct (:func:`o3d_spectral.search.poses.distinct`) are measured the same way where they
+distinct (:func:`o3d_spectral.evidence.poses.distinct`) are measured the same way where they
 ended (the climbs' best iterates; the confirmation's rivals after its short ICP), and the
 best of them is the *rival fit*. Both are reported in the result (``fit``, ``rival_fit``), and
-the fit is one of the calibrated confidence's inputs (:mod:`o3d_spectral.pose_evidence`).
+the fit is one of the calibrated confidence's inputs (:mod:`o3d_spectral.evidence.pose`).
 """
 
 from __future__ import annotations
@@ -32,13 +32,13 @@ import open3d as o3d
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .io.cloud import MIN_POINTS
-from .io.rows import known
-from .refinement import near_pose
-from .search.confirmation import fit
-from .search.poses import distinct
-from .spectra import so3
-from .stepper import MovingCloud, SpectralStepper
+from ..io.cloud import MIN_POINTS
+from ..io.rows import known
+from ..law.stepper import MovingCloud, SpectralStepper
+from ..refinement.icp import near_pose
+from ..spectra import so3
+from .fit import fit
+from .poses import distinct
 
 __all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns", "FixedPoints",
            "RIVALS",
@@ -164,7 +164,7 @@ def _facing_share(
     stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64], share: float, culls: bool,
 ) -> float:
-    """``share`` (:func:`o3d_spectral.search.confirmation.fit`'s), or, for two views (the moving
+    """``share`` (:func:`o3d_spectral.evidence.fit.fit`'s), or, for two views (the moving
     cloud matched whole, though the fixed cloud's sensor is known), the share of the
     moving points facing that sensor at ``pose`` that lie within one voxel of ``fixed``:
     what the fixed view can hold of the moving one (their overlap, about), not all of it."""
@@ -235,7 +235,7 @@ def ambiguity(
     The turns (:func:`turns`: a quarter and a half turn about each of the source's
     principal axes) are measured where they are, on the fixed cloud's points near the
     pose; the best is polished by the short ICP
-    (:func:`o3d_spectral.search.confirmation.fit`) when it fits within
+    (:func:`o3d_spectral.evidence.fit.fit`) when it fits within
     :data:`TURN_POLISH` of the pose (a near-symmetric object lands a voxel or two off
     its other side), so the cost is a few distance queries and at most one polish.
     """
@@ -278,7 +278,7 @@ def _share(
     stepper: SpectralStepper, moving: MovingCloud, fixed: FixedPoints,
     pose: NDArray[np.float64],
 ) -> float:
-    """:func:`o3d_spectral.search.confirmation.fit`'s share at ``pose`` (4, 4) with no
+    """:func:`o3d_spectral.evidence.fit.fit`'s share at ``pose`` (4, 4) with no
     polish: of the moving points visible there, those within a voxel of ``fixed``."""
     R, t = pose[:3, :3], pose[:3, 3]
     _, mask, _ = stepper.visible(moving, R, R @ moving.centroid + t - moving.centroid)

@@ -14,11 +14,11 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from .io.cloud import extent
-from .io.density import first_per_cell
-from .io.rows import lengths
-from .options import RefinementOption
-from .parallel import one_open3d_thread
+from ..common.parallel import one_open3d_thread
+from ..io.cloud import extent
+from ..io.density import first_per_cell
+from ..io.rows import lengths
+from ..options import RefinementOption
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
@@ -94,7 +94,8 @@ def point_to_plane_icp(
     point ``d`` from that origin (a 2.6 degree first step at 50 m: 5 cm), which far from
     the origin throws the source out of the correspondence distance after one step.
     About the source's centroid the error is that of the object's own size, at any
-    distance. Open3D's loops run on one thread (:func:`o3d_spectral.parallel.one_open3d_thread`):
+    distance. Open3D's loops run on one thread
+    (:func:`o3d_spectral.common.parallel.one_open3d_thread`):
     a result must repeat exactly; several ICPs may run side by side on the caller's
     threads, as Open3D's ICP releases the GIL.
 

@@ -34,9 +34,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .io.cloud import MIN_POINTS
-from .io.rows import known, lengths
-from .spectra import so3
+from ..io.cloud import MIN_POINTS
+from ..io.rows import known, lengths
+from ..spectra import so3
 
 __all__ = ["FreeMotion", "Overlap", "free_motions", "unresisted_motions", "constraint_rows",
            "leaves_motion_free", "support_floor", "turn_axis_point", "SUPPORT_FLOOR", "PLANE_SLACK",
@@ -58,7 +58,7 @@ PLANE_SLACK = 0.25
 #: target's surface (most of the overlap still overlaps: what leaves it moves where the
 #: target shows nothing, which neither holds nor contradicts the motion).
 STAYING = 0.5
-#: A pose is right within 5 degrees and 1 cm (:mod:`o3d_spectral.confidence_model`): a turn
+#: A pose is right within 5 degrees and 1 cm (:mod:`o3d_spectral.evidence.confidence`): a turn
 #: that goes farther than this either way, in degrees, in all, leaves the pose unfixed.
 TURN_TOLERANCE = 5.0
 #: A slide that goes farther than this many voxels, both ways together, leaves the pose

@@ -4,11 +4,12 @@ After the polish, one stage takes the pose, in the frame the run works in (the m
 cloud, the fixed cloud centred on the target), and measures it:
 
 1. its fit, and the best distinct pose among the search's hypotheses and the pose's own
-   turns (:func:`o3d_spectral.verification.measure`, :func:`~o3d_spectral.verification.ambiguity`);
-2. its evidence (:func:`o3d_spectral.pose_evidence.pose_evidence`), its free motions
+   turns (:func:`o3d_spectral.evidence.verification.measure`,
+   :func:`~o3d_spectral.evidence.verification.ambiguity`);
+2. its evidence (:func:`o3d_spectral.evidence.pose.pose_evidence`), its free motions
    among it;
-3. the calibrated confidence (:mod:`o3d_spectral.confidence_model`);
-4. the call's warnings and notes (:mod:`o3d_spectral.diagnostics`).
+3. the calibrated confidence (:mod:`o3d_spectral.evidence.confidence`);
+4. the call's warnings and notes (:mod:`o3d_spectral.evidence.diagnostics`).
 
 The caller moves what it holds to its own frame once (:mod:`o3d_spectral.run`).
 """
@@ -21,12 +22,12 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from .confidence_model import confidence
+from ..io.cloud import CloudReading
+from ..law.stepper import MovingCloud, SpectralStepper
+from .confidence import confidence
 from .diagnostics import registration_messages
 from .free_motions import FreeMotion
-from .io.cloud import CloudReading
-from .pose_evidence import PoseEvidence, pose_evidence
-from .stepper import MovingCloud, SpectralStepper
+from .pose import PoseEvidence, pose_evidence
 from .verification import FixedPoints, ambiguity, measure
 
 __all__ = ["Verdict", "verdict"]
@@ -78,7 +79,7 @@ def verdict(
     stepper, moving
         The run's fixed spectra and moving cloud.
     fixed : open3d.geometry.PointCloud
-        The fixed cloud with normals (:func:`o3d_spectral.refinement.with_normals`).
+        The fixed cloud with normals (:func:`o3d_spectral.refinement.icp.with_normals`).
     pose : ndarray, shape (4, 4)
         The polished pose, moving cloud to fixed cloud.
     others : list of ndarray (4, 4)

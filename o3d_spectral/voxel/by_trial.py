@@ -28,12 +28,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import real_array, shown
-from .diagnostics import may_be_wrong
-from .registration import registration_spectral_global
-from .result import SpectralRegistrationResult
-from .search.poses import distinct
-from .voxel import suggest_voxel_size
+from ..common.checks import real_array, shown
+from ..evidence.diagnostics import may_be_wrong
+from ..evidence.poses import distinct
+from ..registration import registration_spectral_global
+from ..result import SpectralRegistrationResult
+from .suggestion import suggest_voxel_size
 
 __all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER"]
 
@@ -59,7 +59,7 @@ class VoxelTrial:
         Each size tried (metres) and its registration's ``confidence``, in order.
     agreed : bool
         Another size's pose agrees with the kept one (within 10 degrees,
-        :func:`o3d_spectral.search.poses.distinct`).
+        :func:`o3d_spectral.evidence.poses.distinct`).
     """
 
     voxel_size: float
@@ -78,9 +78,9 @@ def voxel_trial(
     ``ladder``, in order, each registered by
     :func:`~o3d_spectral.registration_spectral_global`. While sizes remain, the ladder
     ends where a size's pose agrees with an earlier size's (the two are not
-    :func:`~o3d_spectral.search.poses.distinct`: within 10 degrees) and the more confident
+    :func:`~o3d_spectral.evidence.poses.distinct`: within 10 degrees) and the more confident
     of the two is not one the call warns may be wrong
-    (:func:`o3d_spectral.diagnostics.may_be_wrong`, confidence under 0.5); the finer of the
+    (:func:`o3d_spectral.evidence.diagnostics.may_be_wrong`, confidence under 0.5); the finer of the
     two that is not warned about is kept (the same pose, polished with correspondences
     nearer: two agreeing dragon scans 120 degrees apart, 0.90 confident at 7.2 mm and right,
     0.95 at 10.1 mm and 7 degrees off). Once every size is tried, the sizes vote: the poses
