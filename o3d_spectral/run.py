@@ -38,6 +38,7 @@ from .options import (
     SpectralConvergenceCriteria,
     SpectralRegistrationOption,
 )
+from .refinement.constants import REFINEMENT_MARGIN
 from .refinement.icp import near_pose, refine, with_normals
 from .result import SpectralRegistrationResult
 from .search.options import GlobalSearchOption
@@ -48,9 +49,6 @@ __all__ = ["Run", "check_settings", "start", "finish", "DEFAULT_REFINEMENT",
 
 #: The default polish: point-to-plane ICP at 0.4 voxel after a 1-voxel pass where better.
 DEFAULT_REFINEMENT = RefinementOption()
-#: The refinement sees the target within the source's radius, or this many voxels if
-#: more, of the ball holding the posed source.
-REFINEMENT_MARGIN = 10.0
 
 
 @dataclass

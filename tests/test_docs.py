@@ -116,8 +116,10 @@ def test_the_results_page_stays_a_reference():
     assert len((DOCS / "results.md").read_text().splitlines()) <= 300
 
 
-def test_the_constants_catalogue_is_current_and_every_constant_has_a_reason():
-    """``docs/constants.md`` is what ``tools/constants.py`` writes from the code now."""
+def test_every_constant_is_in_its_layers_catalogue_with_a_reason_and_the_page_is_current():
+    """Every module-level numeric constant of the package lives in its layer's
+    ``constants.py`` with its reason (``--check`` names any other), and
+    ``docs/constants.md`` is what ``tools/constants.py`` writes from them now."""
     import subprocess
     import sys
 

@@ -17,11 +17,10 @@ import time
 from collections.abc import Iterator
 from typing import TextIO
 
+from o3d_spectral.cli.constants import STATUS_DELAY, STATUS_INTERVAL
 from o3d_spectral.cli.stops import import_whole
 
 LOG_FORMAT = "o3d-spectral: %(levelname)s: %(message)s"
-#: Seconds a command runs before its status line appears, and between redraws.
-STATUS_DELAY, STATUS_INTERVAL = 2.0, 0.5
 
 
 def is_terminal(stream: TextIO) -> bool:

@@ -26,13 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .constants import PICTURE_POINTS
+
 EXAMPLE = ("example: o3d-spectral reconstruct scan_*.ply --voxel-size 0.005 --out model "
            "--json")
 OUTPUTS = ("merged.ply", "poses.json", "merged.png")
 #: Where a new run moves the outputs of the previous one until it has written its own.
 PREVIOUS = "previous_run"
-#: Points drawn in the picture at most (a random, seeded subset beyond).
-PICTURE_POINTS = 30_000
 
 log = logging.getLogger(__name__)
 

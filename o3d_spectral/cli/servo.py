@@ -11,11 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .arguments import seed
-
-#: A servoing run succeeds when it ends within 5 mm and 1 degree of the goal (the paper's
-#: second experiment reports its final errors against these).
-SUCCESS_TRANSLATION = 0.005  # m
-SUCCESS_ROTATION = np.deg2rad(1.0)
+from .constants import SUCCESS_ROTATION, SUCCESS_TRANSLATION
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

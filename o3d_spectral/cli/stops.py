@@ -23,13 +23,11 @@ import threading
 from collections.abc import Iterator
 from types import ModuleType
 
+from .constants import BROKEN_PIPE_STATUS
+
 __all__ = ["BROKEN_PIPE_STATUS", "Terminated", "exit_after_stop", "import_whole",
            "quiet_broken_pipe", "sigterm_as_interrupt", "signals_held", "stop_cause",
            "stop_status"]
-
-#: Exit status after the reader of the standard output went away: 128 + SIGPIPE, as a
-#: program the signal ended (``yes | head -1``).
-BROKEN_PIPE_STATUS = 141
 
 
 class Terminated(KeyboardInterrupt):

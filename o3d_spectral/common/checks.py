@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import MAX_VOXELS_ACROSS, RIGID_TOLERANCE
+
 
 def check_bool(name: str, value: object) -> None:
     """``value`` must be a bool (``True``/``False``, or numpy's)."""
@@ -76,12 +78,6 @@ def check_instance(name: str, value: object, cls: type, *, optional: bool = True
         f"{' or None' if optional else ''}, got {type(value).__module__}."
         f"{type(value).__qualname__}"
     )
-
-
-#: :func:`check_transformation`: a rotation block ``R`` with ``max |R^T R - I|`` up to this
-#: (a pose written with 5 decimals is about 1e-5 off) is re-orthonormalised; beyond it the
-#: matrix is refused.
-RIGID_TOLERANCE = 1e-4
 
 
 def shown(value: object, limit: int = 60) -> str:
@@ -168,11 +164,6 @@ def check_voxel_size(value: object, name: str = "voxel_size") -> float:
     if not (np.isfinite(size) and size > 0.0):
         raise ValueError(f"{name} must be a positive number of metres (finite), got {shown(value)}")
     return size
-
-
-#: Most voxels a cloud may span along an axis: a grid 2**20 voxels a side exceeds any
-#: memory, and Open3D's down-sampling fails beyond 2**31 (a voxel_size of 1e-12 m).
-MAX_VOXELS_ACROSS = 2**20
 
 
 def check_voxel_span(voxel_size: float, extent: float, name: str,

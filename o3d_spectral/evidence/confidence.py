@@ -25,43 +25,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from .constants import BIAS, COEFFICIENTS, PLANE_FLOOR, SHARE_CLIP, WARN_BELOW
 from .pose import PoseEvidence
 from .verification import ASYMMETRIC
 
 __all__ = ["BIAS", "COEFFICIENTS", "FEATURES", "WARN_BELOW", "features", "confidence",
            "probability"]
 
-#: The pose may be wrong below this confidence (the odds are against it).
-WARN_BELOW = 0.5
-#: Shares are clipped to [SHARE_CLIP, 1 - SHARE_CLIP] before their logit.
-SHARE_CLIP = 0.02
-#: Added to the plane distance (voxels) before its logarithm.
-PLANE_FLOOR = 1e-3
 
 #: The model's features, in the order of :data:`COEFFICIENTS`.
 FEATURES = ("logit_fit_object", "logit_fit_views", "two_views", "logit_target_fit",
             "log_plane_object", "log_plane_views", "logit_normals_object", "sqrt_free_space",
             "sensor_known", "ambiguous_different", "support_gap")
-
-# Fitted by eval/calibrate_confidence.py (see the module docstring): command, data and
-# commit in docs/data/sources.json ("calibrate_confidence_summary"); the same numbers in
-# docs/data/calibrate_confidence_coefficients.json.
-#: The logistic model's intercept.
-BIAS = 2.9884
-#: The logistic model's coefficient of each feature (raw units).
-COEFFICIENTS = {
-    "logit_fit_object": 2.0328,
-    "logit_fit_views": -0.2754,
-    "two_views": 5.1068,
-    "logit_target_fit": -0.2489,
-    "log_plane_object": -1.1498,
-    "log_plane_views": -0.8628,
-    "logit_normals_object": 1.9444,
-    "sqrt_free_space": -43.8222,
-    "sensor_known": -2.2904,
-    "ambiguous_different": -0.7524,
-    "support_gap": 2.0803,
-}
 
 
 def _logit(share: float) -> float:

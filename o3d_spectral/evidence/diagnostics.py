@@ -39,14 +39,12 @@ from typing import NamedTuple
 
 from ..io.cloud import CloudReading
 from .confidence import WARN_BELOW
+from .constants import FLAT
 from .free_motions import FreeMotion
 
 __all__ = ["FLAT", "WARN_BELOW", "Messages", "may_be_wrong", "registration_messages"]
 
 logger = logging.getLogger(__name__)
-
-#: A cloud whose mean unit normal is at least this long is flat (:attr:`CloudReading.flatness`).
-FLAT = 0.97
 
 
 def may_be_wrong(confidence: float) -> bool:

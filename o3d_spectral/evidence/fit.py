@@ -22,17 +22,9 @@ from numpy.typing import NDArray
 from ..io.rows import lengths
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..refinement.icp import near_pose, point_to_plane_icp
+from .constants import CLOSE_DISTANCE, ICP_DISTANCES
 
 __all__ = ["Fit", "fit", "CLOSE_DISTANCE", "ICP_DISTANCES"]
-
-#: The closeness's distance, voxels. At one voxel a near-symmetric wrong pose fits within
-#: 0.01 of the right one or better (a box turned half a turn); at a quarter voxel the three
-#: wrong poses that were placed best were 0.044-0.058 less close than a right rival, and
-#: right poses led wrong rivals by 0.008 or more (once trailed, by 0.012: no early stop).
-CLOSE_DISTANCE = 0.25
-#: The short polish's correspondence distances, voxels: a wide pass to take the placed
-#: pose (a few degrees off, on the Euler grid) into the basin, then one at the fit's.
-ICP_DISTANCES = (2.0, 1.0)
 
 
 class Fit(NamedTuple):

@@ -37,44 +37,21 @@ from scipy.spatial import cKDTree
 from ..io.cloud import MIN_POINTS
 from ..io.rows import known, lengths
 from ..spectra import so3
+from .constants import (
+    MAX_STEPS,
+    PLANE_SLACK,
+    SLIDE_REACH,
+    SLIDE_ROTATION,
+    SLIDE_TOLERANCE,
+    STAYING,
+    SUPPORT_FLOOR,
+    TURN_TOLERANCE,
+)
 
 __all__ = ["FreeMotion", "Overlap", "free_motions", "unresisted_motions", "constraint_rows",
            "leaves_motion_free", "support_floor", "turn_axis_point", "SUPPORT_FLOOR", "PLANE_SLACK",
            "STAYING", "TURN_TOLERANCE", "SLIDE_TOLERANCE", "SLIDE_ROTATION", "SLIDE_REACH",
            "MAX_STEPS"]
-
-#: A motion whose constraint is under this share of the mean constraint over the six
-#: motions is not resisted by the points. A view that shows only a body of revolution (a
-#: mug's body with its handle hidden, a can, a bowl) leaves the turn about its axis at
-#: 0.2-0.6% of the mean on the bundled models' views; a view showing the mug's handle
-#: holds it with 15-26%, and a box's or a drill's views every motion with 2% or more.
-SUPPORT_FLOOR = 0.01
-#: A free motion goes on while the moved inliers' median distance to the target's
-#: tangent planes stays within this many voxels of the pose's own (a quarter of the
-#: inlier distance: a motion the surface resists moves the median inlier by half a voxel
-#: across it within a voxel's travel).
-PLANE_SLACK = 0.25
-#: A free motion goes on while at least this share of the inliers stays over the
-#: target's surface (most of the overlap still overlaps: what leaves it moves where the
-#: target shows nothing, which neither holds nor contradicts the motion).
-STAYING = 0.5
-#: A pose is right within 5 degrees and 1 cm (:mod:`o3d_spectral.evidence.confidence`): a turn
-#: that goes farther than this either way, in degrees, in all, leaves the pose unfixed.
-TURN_TOLERANCE = 5.0
-#: A slide that goes farther than this many voxels, both ways together, leaves the pose
-#: unfixed (1 cm at the calibration's 8 mm voxel, each way).
-SLIDE_TOLERANCE = 2.5
-#: A free motion whose rotation (scaled by the inliers' RMS radius) is under this share
-#: of the motion is a slide; the free motions' rotations span the turns, their null
-#: space the slides.
-SLIDE_ROTATION = 0.05
-#: A slide is followed at most this many times the inliers' largest distance to their
-#: centroid either way (twice their width: past it, they could stay over a target only
-#: twice their size).
-SLIDE_REACH = 4.0
-#: Steps either way at most: a turn's half turn, or a slide's reach, in even steps of a
-#: voxel at the farthest inlier, or this many where those would be more.
-MAX_STEPS = 48
 
 
 @dataclass(frozen=True)

@@ -50,27 +50,18 @@ from scipy.spatial import cKDTree
 
 from ..io.cloud import MIN_POINTS
 from ..io.rows import known
+from .constants import (
+    FREE_SPACE_DEPTH,
+    MIN_INCIDENCE,
+    NORMAL_AGREEMENT_ANGLE,
+    RAY_NEIGHBOURS,
+    RAY_RADIUS,
+)
 from .free_motions import FreeMotion, constraint_rows, free_motions, support_floor
 
 __all__ = ["PoseEvidence", "pose_evidence", "NORMAL_AGREEMENT_ANGLE", "FREE_SPACE_DEPTH",
            "RAY_RADIUS", "RAY_NEIGHBOURS", "MIN_INCIDENCE", "motion_support", "Motion",
            "least_supported_motion", "weakest_motion"]
-
-#: Normals closer than this (degrees, either sign) agree.
-NORMAL_AGREEMENT_ANGLE = 30.0
-#: A source point violates the free space when the nearest target point on its ray lies
-#: more than this many voxels behind it (the sensor saw through it).
-FREE_SPACE_DEPTH = 2.0
-#: Half-width of a ray, in voxels at the source point's range: target points within it
-#: are on the ray.
-RAY_RADIUS = 0.5
-#: The free-space test counts the source points whose normal makes a cosine over this
-#: with their ray to the sensor: at grazing rays a depth sensor returns no point on the
-#: surface, and a right pose's silhouette would seem seen through.
-MIN_INCIDENCE = 0.2
-#: Target points looked at on each ray, nearest to it first (one point per voxel puts
-#: a few on a ray: its front and back surfaces).
-RAY_NEIGHBOURS = 8
 
 
 @dataclass(frozen=True)

@@ -6,12 +6,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..spectra import so3
+from .constants import DISTINCT_ANGLE
 
 __all__ = ["DISTINCT_ANGLE", "distinct", "confidence"]
-
-#: Rotations further apart than this (radians) are distinct poses: the confirmation's
-#: rivals, the confidence's runner-up, the verification's rivals.
-DISTINCT_ANGLE = np.deg2rad(10.0)
 
 
 def distinct(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:

@@ -37,6 +37,15 @@ from ..io.rows import known
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..refinement.icp import near_pose
 from ..spectra import so3
+from .constants import (
+    AMBIGUITY_MARGIN,
+    AMBIGUITY_MIN_FIT,
+    ASYMMETRIC,
+    RIVALS,
+    TURN_ANGLES,
+    TURN_POLISH,
+    TURN_REACH,
+)
 from .fit import fit
 from .poses import distinct
 
@@ -44,26 +53,6 @@ __all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns
            "RIVALS",
            "AMBIGUITY_MARGIN", "AMBIGUITY_MIN_FIT", "TURN_ANGLES", "TURN_POLISH",
            "TURN_REACH", "ASYMMETRIC"]
-
-#: Hypotheses measured at most, besides the returned pose.
-RIVALS = 4
-#: A distinct pose whose fit is at least the returned pose's less this makes the pose
-#: ambiguous (a fit counts points within one voxel: 0.02 is one point in fifty).
-AMBIGUITY_MARGIN = 0.02
-#: A pose that fits less than this is not called ambiguous (a wrong pose is not made
-#: more or less right by a rival that fits as poorly).
-AMBIGUITY_MIN_FIT = 0.5
-#: The turns of the returned pose tried as rivals, degrees about each principal axis
-#: (a box, a can or a bottle maps onto itself, or nearly, by some of them).
-TURN_ANGLES = (90.0, 180.0, -90.0)
-#: The best turn, fitting within this of the pose before any polish, is polished.
-TURN_POLISH = 0.3
-#: The turns are measured on the fixed points within this many voxels of the ball of
-#: the posed moving points (the short ICP's 2 voxels, and 2 of drift).
-TURN_REACH = 4.0
-#: A rival whose turn from the returned pose moves the source's points this far (median,
-#: voxels) from its own surface or more is a different pose, not a symmetry.
-ASYMMETRIC = 0.15
 
 
 class FixedPoints:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from o3d_spectral.harness._optional import require
+from o3d_spectral.harness.constants import DPI, FLOOR, LEGEND_ROOM
 
 __all__ = [
     "DPI",
@@ -24,15 +25,9 @@ __all__ = [
     "write_png",
 ]
 
-#: Resolution of every plot (pixels per inch).
-DPI = 110
-#: Smallest error drawn on log axes (deg, mm).
-FLOOR = 1e-3
 #: Room around the panels, inches: left (tick labels and y label), bottom (x label), top
 #: (title), between panels.
 MARGINS = {"left": 0.75, "bottom": 0.6, "top": 0.4, "wspace": 0.55, "hspace": 0.75}
-#: Room on the right for a legend outside the panels, inches.
-LEGEND_ROOM = 2.0
 
 
 def pyplot():

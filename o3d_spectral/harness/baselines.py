@@ -20,6 +20,11 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 
+from o3d_spectral.harness.constants import (
+    FGR_DISTANCE_VOXELS,
+    ICP_DISTANCE_VOXELS,
+    ICP_MAX_ITERATION,
+)
 from o3d_spectral.harness.tutorial import (
     FPFH,
     LEAN_REFINEMENT,
@@ -45,12 +50,6 @@ __all__ = [
 
 _registration = o3d.pipelines.registration
 
-#: ICP from the identity: correspondences up to this many voxels away, at most this many
-#: iterations (Open3D's default 30 stops before a 10 cm offset is closed).
-ICP_DISTANCE_VOXELS = 5.0
-ICP_MAX_ITERATION = 100
-
-
 
 #: The ICP baselines' settings (distances in voxels).
 ICP_SETTINGS = {
@@ -63,8 +62,6 @@ ICP_SETTINGS = {
     ),
 }
 
-#: FGR's options: the correspondence distance in voxels, Open3D's defaults for the rest.
-FGR_DISTANCE_VOXELS = 0.5
 FGR = {"maximum_correspondence_distance_voxels": FGR_DISTANCE_VOXELS} | open3d_fields(
     _registration.FastGlobalRegistrationOption(),
     (

@@ -43,6 +43,7 @@ from o3d_spectral.harness.bop_checks import (
     number,
     visible_fraction,
 )
+from o3d_spectral.harness.constants import FRAME_VOXEL, MIN_VISIBLE
 from o3d_spectral.harness.real import orient_outward
 from o3d_spectral.io.files import check_cloud_file
 from o3d_spectral.synthetic.instance import Instance
@@ -53,10 +54,6 @@ __all__ = ["FRAME_VOXEL", "KINDS", "MIN_VISIBLE", "BopSet", "symmetry_of",
 
 #: The two kinds of instance an annotated object gives.
 KINDS = ("crop", "frame")
-#: Voxel (m) the whole frame is down-sampled to (the bundled YCB-Video frame's 2 mm).
-FRAME_VOXEL = 0.002
-#: Least visible fraction of an annotated object that BOP evaluates.
-MIN_VISIBLE = 0.1
 _MM = 1e-3
 
 

@@ -44,20 +44,13 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
+from .constants import IMAGE_SHAPE, PIXEL_TOLERANCE, POISSON_DEPTH, POISSON_TRIM
+
 __all__ = ["FRAME", "IMAGE_SHAPE", "PIXEL_TOLERANCE", "POISSON_DEPTH", "POISSON_TRIM",
            "convert_ycbv", "model_surface", "ycbv_originals"]
 
 #: The YCB-Video frame's folder in the originals.
 FRAME = "0000_000001"
-#: The frame's image size (rows, columns), pixels.
-IMAGE_SHAPE = (480, 640)
-#: Octree depth of the screened Poisson reconstruction of a model surface.
-POISSON_DEPTH = 7
-#: Surface vertices farther than this (metres) from every model point are removed.
-POISSON_TRIM = 0.01
-#: Largest distance (pixels) of a point's image from integer pixel coordinates: float32
-#: coordinates keep a point's image within 1e-4 px of its pixel.
-PIXEL_TOLERANCE = 1e-3
 #: What :func:`convert_ycbv` writes in its folder; anything else there stops it.
 _WRITTEN = frozenset({"README.md", "LICENSE", "models", "models_eval", "test"})
 

@@ -29,15 +29,12 @@ from multiprocessing import get_context
 from pathlib import Path
 
 from o3d_spectral.common import extras
+from o3d_spectral.harness.constants import INTERRUPT_POLL, PARENT_POLL
 
 __all__ = ["SINGLE_THREAD", "StopFlag", "dask_cluster", "interrupt_flag", "local_pool",
            "require_distributed"]
 
 SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-#: How often (seconds) a pool worker checks that the process that started it is alive.
-PARENT_POLL = 0.5
-#: How often (seconds) the pool's parent checks for an interrupt while it waits for rows.
-INTERRUPT_POLL = 0.2
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 

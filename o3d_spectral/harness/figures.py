@@ -24,6 +24,7 @@ from o3d_spectral.harness._plotting import (
     save,
     title,
 )
+from o3d_spectral.harness.constants import ANGLE_BINS_DEG
 from o3d_spectral.harness.convergence_plot import plot_convergence
 from o3d_spectral.harness.tables import (
     by_suite_and_method,
@@ -42,10 +43,6 @@ __all__ = [
     "plot_success_vs_angle",
     "plot_times",
 ]
-
-#: Bins of the initial rotation (degrees) in the success-against-angle plot: 20 degrees
-#: wide from 0 to 180, the range of the suites' rotations.
-ANGLE_BINS_DEG = np.arange(0.0, 181.0, 20.0)
 
 
 def _styles(frame: pd.DataFrame) -> dict[str, dict[str, str]]:

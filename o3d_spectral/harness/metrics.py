@@ -16,6 +16,7 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
+from o3d_spectral.harness.constants import OBSERVATION_TOLERANCE
 from o3d_spectral.harness.errors import (
     rotation_error,
     symmetric_rotation_error,
@@ -36,10 +37,6 @@ __all__ = [
     "observation_fit",
     "registration_fit",
 ]
-
-#: Distance (m) within which an observed point counts as lying on a posed model: about
-#: three times the suites' depth noise at 1 m (1.9 mm), over their 3 mm depth step.
-OBSERVATION_TOLERANCE = 0.005
 
 
 @dataclass(frozen=True)

@@ -34,22 +34,20 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial.transform import Rotation
 
+from o3d_spectral.harness.constants import (
+    INFORMATION_TOLERANCE,
+    MAX_RMSE_M,
+    RECALL_ROTATION_DEG,
+    RECALL_TRANSLATION_M,
+)
 from o3d_spectral.harness.errors import rotation_error, translation_error
 from o3d_spectral.io.files import atomic_write_text, check_cloud_file, check_finite
 from o3d_spectral.synthetic.instance import Instance
 from o3d_spectral.synthetic.manifest import check_pose
 from o3d_spectral.synthetic.symmetry import Symmetry
 
-__all__ = ["MAX_RMSE_M", "MAX_ROTATION_DEG", "MAX_TRANSLATION_M", "PairSet",
+__all__ = ["MAX_RMSE_M", "RECALL_ROTATION_DEG", "RECALL_TRANSLATION_M", "PairSet",
            "information_matrix", "information_rmse", "pair_scenes", "read_log", "write_log"]
-
-#: Registration recall's thresholds: rotation and translation errors (FCGF, DGR) ...
-MAX_ROTATION_DEG, MAX_TRANSLATION_M = 15.0, 0.30
-#: ... and the benchmark's own, on the correspondences' RMSE (Choi et al. 2015).
-MAX_RMSE_M = 0.2
-#: How far from symmetric, relative to its largest entry, and how negative, relative to
-#: its largest eigenvalue, an information matrix may be: ten significant digits written.
-INFORMATION_TOLERANCE = 1e-6
 
 
 def information_rmse(transformation: np.ndarray, T_gt: np.ndarray,
@@ -270,5 +268,5 @@ class PairSet:
         if self.information is not None:
             rmse = information_rmse(transformation, T_gt, self.information[self.keys[index]])
         return {"re_deg": re, "te_m": te,
-                "recalled": bool(re < MAX_ROTATION_DEG and te < MAX_TRANSLATION_M),
+                "recalled": bool(re < RECALL_ROTATION_DEG and te < RECALL_TRANSLATION_M),
                 "rmse_m": rmse, "rmse_recalled": None if rmse is None else rmse <= MAX_RMSE_M}

@@ -40,6 +40,14 @@ from functools import lru_cache
 import numpy as np
 import open3d as o3d
 
+from o3d_spectral.harness.constants import (
+    CONTINUOUS_STEPS,
+    MSPD_THRESHOLDS_PX,
+    MSSD_THRESHOLDS,
+    VSD_DELTA_M,
+    VSD_TAUS,
+    VSD_THRESHOLDS,
+)
 from o3d_spectral.harness.errors import mssd as _mssd
 from o3d_spectral.synthetic.symmetry import Symmetry
 
@@ -60,19 +68,6 @@ __all__ = [
     "vsd",
     "vsd_recall",
 ]
-
-#: VSD's misalignment tolerance of the visibility test (m), BOP's 15 mm.
-VSD_DELTA_M = 0.015
-#: VSD's tolerances of a pixel's distance error, as fractions of the object's diameter.
-VSD_TAUS = tuple(round(0.05 * k, 2) for k in range(1, 11))
-#: VSD error below which an estimate is correct (for each of :data:`VSD_TAUS`).
-VSD_THRESHOLDS = tuple(round(0.05 * k, 2) for k in range(1, 11))
-#: MSSD error below which an estimate is correct, as fractions of the diameter.
-MSSD_THRESHOLDS = tuple(round(0.05 * k, 2) for k in range(1, 11))
-#: MSPD error below which an estimate is correct (pixels of a 640-pixel-wide image).
-MSPD_THRESHOLDS_PX = tuple(float(5 * k) for k in range(1, 11))
-#: Rotations a continuous symmetry is sampled at: BOP's ``ceil(pi / 0.01)`` over a turn.
-CONTINUOUS_STEPS = int(np.ceil(np.pi / 0.01))
 
 
 def symmetry_elements(symmetry: Symmetry | None) -> np.ndarray:

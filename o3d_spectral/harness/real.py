@@ -34,6 +34,13 @@ import open3d as o3d
 from scipy.spatial.transform import Rotation
 
 from o3d_spectral.common.bundled import bundled_folder
+from o3d_spectral.harness.constants import (
+    DRAGON_ANGLES,
+    DRAGON_SENSOR,
+    DRAGON_VOXEL,
+    MAX_ROTATION_DEG,
+    MAX_TRANSLATION_M,
+)
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.io.files import atomic_write_cloud
 from o3d_spectral.spectra import so3
@@ -63,8 +70,6 @@ __all__ = [
     "write_dragon_pairs",
 ]
 
-#: Turntable angles (degrees) of the bundled dragon scans.
-DRAGON_ANGLES: tuple[int, ...] = tuple(range(0, 169, 24))
 #: The YCB-Video classes in the bundled frame.
 YCBV_CLASSES: tuple[str, ...] = ("009_gelatin_box", "025_mug", "061_foam_brick")
 #: The groups of cases, in order.
@@ -74,17 +79,9 @@ GROUPS: tuple[str, ...] = ("dragon_24", "dragon_48", "dragon_72", "dragon_96", "
 #: ("oriented"), as Open3D's ``estimate_normals()`` alone leaves them ("unoriented"), or
 #: none (the method estimates its own).
 NORMAL_MODES: tuple[str, ...] = ("oriented", "unoriented", "none")
-#: Voxel size (metres) of the dragon's scans at any step: the dragon is 0.2 m across.
-DRAGON_VOXEL = 0.005
 #: Voxel size (metres) each group is registered at: the YCB-Video objects are the suites'.
 VOXEL_SIZES: dict[str, float] = {**{g: DRAGON_VOXEL for g in GROUPS if g.startswith("dragon")},
                                  "ycbv_crop": 0.008, "ycbv_frame": 0.008}
-#: Success: symmetry-aware rotation error under 5 degrees and translation error (at the
-#: source's centroid) under 1 cm (:func:`case_errors`).
-MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
-#: Where the dragon scanner looked from, in every scan's frame: far along +z (the scans'
-#: normals facing it agree with the scans' neighbours; checked in tests/test_real.py).
-DRAGON_SENSOR = (0.0, 0.0, 10.0)
 _FRAME = "0000_000001"
 _MARKER = Path("dragon") / "dragonStandRight.conf"
 

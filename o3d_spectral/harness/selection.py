@@ -13,6 +13,8 @@ import zlib
 
 import numpy as np
 
+from .constants import TUNING_MODULUS
+
 __all__ = [
     "TUNING_MODULUS",
     "TUNING_SPLIT",
@@ -22,9 +24,6 @@ __all__ = [
     "selected_indices",
 ]
 
-#: Instances with ``index % TUNING_MODULUS == 0`` form the tuning split: settings tuned on
-#: them (``eval/tune_fpfh.py``) are reported on the other instances only.
-TUNING_MODULUS = 4
 TUNING_SPLIT = f"index % {TUNING_MODULUS} == 0"
 
 

@@ -14,6 +14,7 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 
 from ..common.checks import real_array
+from .constants import ISOLATED_GAP, ISOLATED_SHARE, MIN_POINTS
 from .normals import faces, orient, view_direction
 from .rows import bounds, every, lengths
 from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
@@ -23,12 +24,6 @@ __all__ = [
     "MIN_POINTS", "extent", "dense_bounds",
 ]
 
-#: Fewest points, and fewest occupied voxels after down-sampling, the method accepts.
-MIN_POINTS = 10
-#: :func:`dense_bounds`: points beyond a gap of this many voxels along an axis, holding at
-#: most ``ISOLATED_SHARE`` of the cloud, are isolated (flying pixels, stray returns).
-ISOLATED_GAP = 10.0
-ISOLATED_SHARE = 0.01
 
 logger = logging.getLogger(__name__)
 

@@ -19,21 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .cloud import MIN_POINTS, CloudArrays
+from .constants import CELL, DENSE_PER_CELL, MAX_CELLS
 from .rows import bounds
 
 __all__ = ["CELL", "DENSE_PER_CELL", "MAX_CELLS", "first_per_cell", "read_at_voxels"]
-
-#: The cell (voxels) a dense cloud keeps one point of: the resolution at which the method
-#: reads a surface.
-CELL = 0.25
-#: A cloud averaging over this many points per occupied cell is dense: a surface crosses
-#: about 1 / CELL^2 = 16 of a voxel's cells, so 64 points per occupied voxel. At 4x and
-#: 16x the points of a depth view (110 and 450 per voxel) the call then costs what it
-#: costs at 1x (28 per voxel), where the poses are as accurate (``eval/bench_density.py``).
-DENSE_PER_CELL = 4.0
-#: Cells a side beyond which a cloud is not looked at (a voxel size far too small for
-#: the cloud, which the grids' memory check then refuses by name).
-MAX_CELLS = 2.0**31
 
 
 def first_per_cell(points: NDArray[np.float64], cell: float) -> NDArray[np.int64]:

@@ -19,6 +19,21 @@ import open3d as o3d
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .constants import (
+    ALONG_GAP,
+    ALONG_SHARE,
+    AROUND_ANGLE,
+    DEPTH_BIN,
+    DEPTH_GAP,
+    DEPTH_SHARE,
+    DISTANT_SENSOR,
+    JOGGLE,
+    OFF_AXIS_ANGLE,
+    PROPAGATED_POINTS,
+    SPREAD_TIE,
+    VIEW_MEAN,
+    VIEW_SHARE,
+)
 from .rows import bounds, largest_side, lengths, some
 from .signs import SIGN_DISAGREEMENT, sign_disagreement
 
@@ -26,27 +41,6 @@ __all__ = [
     "VIEW_SHARE", "VIEW_MEAN", "is_depth_map", "is_depth_map_along", "sensor_direction", "faces",
     "orient", "view_direction", "sensor_position",
 ]
-
-#: Normals are oriented along the surface over at most this many points (:func:`orient`).
-PROPAGATED_POINTS = 5000
-#: Largest move (share of the extent) of exactly cospherical points, which Qhull cannot
-#: triangulate, before their orientation is propagated (:func:`_propagated`).
-JOGGLE = 1e-6
-#: :func:`view_direction`: a single view when at least this share of its normals lie in
-#: the hemisphere about their mean, and the mean's length is at least ``VIEW_MEAN``.
-VIEW_SHARE = 0.9
-VIEW_MEAN = 0.4
-#: :func:`sensor_position` puts the distant sensor of a view recognised from its normals
-#: this many times the cloud's size (at least 1 m) away.
-DISTANT_SENSOR = 1000.0
-#: :func:`is_depth_map_along`: depth gap (voxels) and share of rays allowed to exceed it.
-ALONG_GAP, ALONG_SHARE = 1.5, 0.05
-#: :func:`is_depth_map`: rays binned this many voxels wide (at the median depth); a depth
-#: map when under DEPTH_SHARE of the bins hold depths over DEPTH_GAP voxels apart.
-DEPTH_BIN, DEPTH_GAP, DEPTH_SHARE = 0.5, 3.0, 0.1
-#: :func:`sensor_direction`: candidates within AROUND_ANGLE (deg) of ``around``, ties within
-#: SPREAD_TIE of the fewest second surfaces; :func:`orient`: OFF_AXIS_ANGLE (deg) off-axis.
-AROUND_ANGLE, SPREAD_TIE, OFF_AXIS_ANGLE = 60.0, 0.005, 45.0
 
 
 def is_depth_map(points: ArrayLike, viewpoint: ArrayLike, voxel_size: float) -> bool:

@@ -15,19 +15,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .constants import SIGN_DISAGREEMENT, THIN_WALLS
+
 __all__ = [
     "SIGN_DISAGREEMENT", "THIN_WALLS", "sign_disagreement", "back_to_back", "neighbour_signs",
 ]
 
-#: Given normals whose neighbours disagree in sign more often than this are re-oriented
-#: (the suites' normals from orientable meshes: at most 4.4%; Open3D's unoriented
-#: estimate on the bundled real scans: 5.6-23%, median 7.8%).
-SIGN_DISAGREEMENT = 0.05
-#: Of given normals over :data:`SIGN_DISAGREEMENT`, those with at least this share of
-#: the disagreeing pairs back to back (:func:`back_to_back`) are the faces of walls
-#: thinner than their spacing (the suites' bowl 97% and mug 96%: walls 0.8 and 1.5 mm);
-#: Open3D's unoriented estimate: 6-48% (the bundled models and real scans).
-THIN_WALLS = 0.8
 #: Points and neighbours :func:`sign_disagreement` looks at.
 _SIGN_QUERIES, _SIGN_NEIGHBOURS, _SIGN_TREE_POINTS = 5000, 6, 100_000
 

@@ -22,20 +22,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .constants import MAX_EXTENT_RATIO, OUTLYING_SHARE, SPAN_POINTS
+
 __all__ = ["MAX_EXTENT_RATIO", "UNIT_MIXES", "OUTLYING_SHARE", "SPAN_POINTS", "span",
            "check_same_units"]
 
-#: Extents (diagonals, :func:`span`) differing by this factor or more are refused.
-MAX_EXTENT_RATIO = 50.0
 #: Unit mixes, the one nearest the ratio of extents named when within a factor of 10 of
 #: it (an object against a scene of it adds up to 10-40x): the factor, the smaller unit,
 #: and the scale that brings it to metres.
 UNIT_MIXES = ((1000.0, "millimetres", 0.001), (100.0, "centimetres", 0.01))
-#: :func:`span` leaves out this share of the points at each end of each axis (flying
-#: pixels, stray returns).
-OUTLYING_SHARE = 0.01
-#: :func:`span` measures at most about this many points (0.02 s), evenly spread.
-SPAN_POINTS = 100_000
 
 
 def span(points: ArrayLike) -> float:

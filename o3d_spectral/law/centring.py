@@ -20,14 +20,11 @@ from numpy.typing import NDArray
 
 from ..io.cloud import CloudArrays
 from ..options import CloudOption
+from .constants import CENTRE_DISTANCE
 from .loop import IterationRecord
 
 __all__ = ["CENTRE_DISTANCE", "offset", "shifted", "centred_arrays", "centred_option",
            "uncentred_history"]
-
-#: Targets whose centroid lies farther than this from the origin (metres) are centred:
-#: all of them (a registration must not depend on where the frame's origin is).
-CENTRE_DISTANCE = 0.0
 
 
 def offset(target: CloudArrays) -> NDArray[np.float64] | None:

@@ -37,17 +37,11 @@ from ..spectra.egi import facing, harmonics_table, normalise, smooth
 from ..spectra.rotation import curvature_scale, gradient, rotation_step
 from ..spectra.so3fft import CorrelationGrid, correlation_grid, visible_correlation_grid
 from ..spectra.target_grid import TargetGrid
+from .constants import FOCUS_SHARE, MAX_HARMONICS_TABLE
 from .evaluation import Evaluation
 from .prepared import prepared_cloud
 
 __all__ = ["MovingCloud", "Evaluation", "SpectralStepper", "FOCUS_SHARE"]
-
-#: :meth:`SpectralStepper.focused` keeps the whole EGI when the points it is given keep
-#: over this share of the fixed cloud's normals.
-FOCUS_SHARE = 0.9
-#: Largest table of harmonics (bytes) kept for a moving cloud's visible EGI
-#: (:attr:`MovingCloud.harmonics`); beyond it the visible normals are projected anew.
-MAX_HARMONICS_TABLE = 64 * 2**20
 
 
 @dataclass(frozen=True)

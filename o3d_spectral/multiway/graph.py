@@ -21,6 +21,7 @@ from ..evidence.free_motions import leaves_motion_free
 from ..io.cloud import CloudArrays, as_arrays
 from ..io.units import MAX_EXTENT_RATIO, span
 from ..refinement.icp import point_to_plane_icp
+from .constants import FINE_CELL, FINE_DISTANCE, NORMAL_VOXELS
 from .options import MultiwayOption, MultiwayResult, PairwiseRecord
 
 __all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",
@@ -30,11 +31,6 @@ reg = o3d.pipelines.registration
 #: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
 #: information matrix (6, 6), uncertain).
 Edge = tuple[int, int, NDArray[np.float64], NDArray[np.float64], bool]
-#: The refinement's second ICP: on the clouds down-sampled to this many voxels, with
-#: correspondences up to :data:`FINE_DISTANCE` voxels (the registration's own polish).
-FINE_CELL, FINE_DISTANCE = 0.25, 0.4
-#: Radius (voxels) of the normals of the voxel down-samples.
-NORMAL_VOXELS = 2.5
 
 
 def poses_from_pairs(

@@ -19,32 +19,13 @@ from ..io.cloud import extent
 from ..io.density import first_per_cell
 from ..io.rows import lengths
 from ..options import RefinementOption
+from .constants import GUARD_SHARE, REACH, RECUTS, TUTORIAL_DISTANCE
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
     "polish_within_reach", "convergence", "REACH", "RECUTS",
     "with_normals", "thinned",
 ]
-
-#: The polished pose is rejected when it keeps at most this share of the unpolished
-#: pose's inliers (it slid off the surface).
-GUARD_SHARE = 0.5
-
-#: The tutorial's correspondence distance, voxels.
-TUTORIAL_DISTANCE = 0.4
-
-#: :func:`polish_within_reach`: the source's points farther from the target than the
-#: ICP's correspondence distance and this many times it again are left out of the final
-#: polish. The polish starts from a pose polished on the down-sampled source already and
-#: moves the source by a fraction of the correspondence distance; a pose that moved some
-#: point by as much is polished again on the whole source.
-REACH = 1.5
-
-#: :func:`polish_within_reach`: at most this many cuts of the source, each about the pose
-#: the previous cut's ICP reached, before the ICP runs on the whole source. A polish from
-#: a start a few degrees off (two scans 96 degrees apart, the sparse polish 3 degrees
-#: short) settles on the second cut; each cut costs a fifth of the whole scan's ICP.
-RECUTS = 3
 
 
 def thinned(cloud: o3d.geometry.PointCloud, cell: float) -> o3d.geometry.PointCloud:

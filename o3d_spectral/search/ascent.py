@@ -26,24 +26,11 @@ from ..common.parallel import thread_map
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
 from .candidates import span_factor
+from .constants import ASCENT_SPAN, ASCENT_STEPS, PRESELECT_SPAN, PRESELECT_STEPS
 from .placement import Hypothesis
 
 __all__ = ["ASCENT_SPAN", "ASCENT_STEPS", "PRESELECT_SPAN", "PRESELECT_STEPS", "peak_ascent",
            "best_ascent"]
-
-#: The compass search's steps, radians, largest first (each tried until no turn by it
-#: raises the peak): from a pose 20 degrees off to within about 3 degrees, which the
-#: point-to-plane polish takes on (dragon pairs: 0.3 s, about 55 phase correlations).
-ASCENT_STEPS = tuple(np.deg2rad([8.0, 4.0, 2.0, 1.0]))
-#: Cells the moving cloud spans at most on the ascent's grid: the voxel itself for the
-#: dragon scans (44-54 voxels across); 2.5 voxels for a 1.6 m RGB-D frame at 1 cm, whose
-#: 55 full-resolution correlations would take seconds.
-ASCENT_SPAN = 64.0
-#: :func:`best_ascent` first ascends every start on a grid where the moving cloud spans at
-#: most this many cells (2 voxels for the dragon scans: an eighth of the FFT) ...
-PRESELECT_SPAN = 32.0
-#: ... with these steps (radians), enough to tell the starts apart.
-PRESELECT_STEPS = tuple(np.deg2rad([8.0, 4.0]))
 
 
 def peak_ascent(

@@ -28,6 +28,14 @@ from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
 from ..spectra.shells import SHELL_BANDWIDTH, shell_coefficients, shell_voxel
 from ..spectra.so3fft import CorrelationGrid, correlation_grid, peak_indices
+from .constants import (
+    SWEEP_FACTOR,
+    SWEEP_PLACEMENTS,
+    SWEEP_PRESELECT_FACTOR,
+    SWEEP_PRESELECTED,
+    SWEEP_SENSOR_ANGLE,
+    SWEEP_SPAN,
+)
 from .options import GlobalSearchOption
 
 __all__ = [
@@ -35,36 +43,6 @@ __all__ = [
     "placed_peaks", "turned_correlation", "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS",
     "SWEEP_SENSOR_ANGLE", "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
 ]
-
-#: Calibrated constants of the sweep between two scans (dragon scans 48-96 degrees apart).
-#:
-#: Voxels of the grid the sweep's rotations are first placed on: a 27th of the FFT; a true
-#: rotation 10-15 degrees off the nearest swept one still placed best or nearly on the
-#: dragon scans, 44-54 voxels across ...
-SWEEP_FACTOR = 3.0
-#: ... or more, so that the moving cloud spans at most this many of its cells: the cost of
-#: each placement bounded whatever the clouds' size (two 1.6 m RGB-D frames at 1 cm).
-SWEEP_SPAN = 18.0
-#: The sweep's rotations that join the other candidates.
-SWEEP_PLACEMENTS = 16
-#: The sweep ranks its rotations first on a grid this many times coarser again (a quarter
-#: of the FFT's cells there, 20-27 cells a side on the dragon scans) ...
-SWEEP_PRESELECT_FACTOR = 2.0
-#: ... and places only this many best of them on its own grid: the dragon pairs 24-120
-#: degrees apart and the turntable pairs 45-135 degrees apart (two rotations each, 78
-#: pairs) keep the same 16 best and the same poses, at 0.7 times the sweep's time (its
-#: cost per rotation, turning, culling and splatting the cloud, stays); over the 144
-#: turntable pairs 30-135 degrees apart, the 16 lose a right rotation on one pair at 45
-#: and one at 60 degrees, which the other generators hold (the same poses).
-SWEEP_PRESELECTED = 128
-#: Largest angle (radians) between the two views' sensor directions the sweep tries (from
-#: the normals: 62-86 degrees on dragon scans 48-72 degrees apart, 99-107 at 96 and
-#: 123-127 at 120): views further apart share under a quarter of their hemispheres of
-#: normals. At 110 degrees the sweep left out every dragon pair 120 degrees apart; at 135,
-#: 2 more of the 14 pairs 96-120 degrees apart (two rotations each) succeed, the pairs
-#: 24-72 degrees apart and the turntable pairs place the same poses, and the sweep places
-#: 85% of its rotations instead of 67%.
-SWEEP_SENSOR_ANGLE = np.deg2rad(135.0)
 
 
 class Candidate(NamedTuple):

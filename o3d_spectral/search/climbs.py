@@ -10,13 +10,10 @@ from numpy.typing import NDArray
 from ..common.parallel import thread_map
 from ..law.loop import Climb, climb
 from ..law.stepper import MovingCloud, SpectralStepper
+from .constants import FOCUS_MARGIN
 from .placement import Hypothesis
 
 __all__ = ["Climbed", "climbed", "FOCUS_MARGIN"]
-
-#: Voxels added to the moving cloud's radius for the ball of a focused EGI, and the
-#: distance (voxels) from a hypothesis' points of the scene's normals its climb matches.
-FOCUS_MARGIN = 2.0
 
 
 class Climbed(NamedTuple):

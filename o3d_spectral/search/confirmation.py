@@ -42,39 +42,11 @@ from ..common.parallel import resolved_workers, thread_map
 from ..evidence.fit import Fit, fit
 from ..evidence.poses import distinct
 from ..law.stepper import MovingCloud, SpectralStepper
+from .constants import CANDIDATES, CLOSER_MARGIN, FIXED_CELL, MIN_FIT
 from .placement import Hypothesis
 
 __all__ = ["Confirmation", "confirm", "closer", "MIN_FIT", "CLOSER_MARGIN", "CANDIDATES",
            "FIXED_CELL"]
-
-#: Calibrated constants: the short polish's fit and closeness of the three best placed
-#: hypotheses and whether each was right (within 5 degrees and 1 cm, symmetry-aware), on
-#: instances 0-47 of each view suite and two rotations of each dragon pair, checked on
-#: instances 48-143 and four rotations; rules chosen for no wrong early stop, with
-#: headroom (``eval/bench_speed.py`` reports the early stops and the wrong ones among them
-#: on every group).
-#:
-#: Least fit of a confirmed pose. Wrong poses of occluded views fit up to 0.70 (a view
-#: half hidden leaves a model turned a quarter or half a turn as much surface to match);
-#: right ones of whole and partial views mostly over 0.8.
-MIN_FIT = 0.75
-#: Least lead in closeness of the best placed pose, polished, over the pose the search
-#: returned for it to be returned instead (:func:`closer`): over the spread of the
-#: closeness of one right pose polished two ways (95th percentile 0.03 on the view
-#: suites). Occluded views 0-239: 6 poses won, none lost; full and partial views and the
-#: dragon pairs, none either way.
-CLOSER_MARGIN = 0.05
-#: Placed hypotheses compared (the best and the distinct ones among the next).
-CANDIDATES = 4
-#: The cell (voxels) the fixed cloud is thinned to for the confirmation (one point per
-#: half voxel, as users tuned for speed run Open3D's tutorial polish): its short
-#: point-to-plane ICP of one point per voxel reads the surface through the fixed cloud's
-#: normals, not their spacing, and so does the closeness; a raw scan (25-30 points per
-#: voxel) cost 6-7 times as much for the same planes (the confirm stage halved over the
-#: bench's groups, the same successes or one more). The final polish keeps every point: on
-#: the suites' views and crops of a scene, whose truth is exact, thinning either cloud
-#: there cost 0.1-0.7 degree of median error.
-FIXED_CELL = 0.5
 
 
 @dataclass(frozen=True)

@@ -45,36 +45,13 @@ from .candidates import (
     span_factor,
     turned_correlation,
 )
+from .constants import COARSE_SPAN, FINEST_STEP, REFINED, RERANKED, SPACING_1000, START_SEPARATION
 from .placement import placement_factor
 
 __all__ = [
     "dense_candidates", "dense_rotations", "compass", "COARSE_SPAN", "RERANKED", "REFINED",
     "START_SEPARATION", "FINEST_STEP",
 ]
-
-#: Calibrated constants of the dense search (dragon scans 96-168 degrees apart, 4608
-#: rotations; the module docstring).
-#:
-#: Cells the moving cloud spans at most on the grid that ranks every rotation first: on
-#: the dragon scans (44-54 voxels across: 3 voxels) the truth's sample ranked 1-9 there
-#: of about 3900.
-COARSE_SPAN = 16.0
-#: Rotations ranked again on the placement's grid.
-RERANKED = 128
-#: Best rotations there climbed by the compass search ...
-REFINED = 4
-#: ... each over this many samples' typical spacings from the ones before it: neighbours
-#: of one sample climb to one peak. On the dragon scans 0 and 120 degrees apart the four
-#: best samples, two of them 10 degrees from the first, all climbed to peaks 10-22 degrees
-#: from the truth; the four best 1.5 spacings apart held one 13.5 degrees off that climbed
-#: to 3.
-START_SEPARATION = 1.5
-#: Smallest turn of the compass search, radians: the polish takes on from there.
-FINEST_STEP = np.deg2rad(0.75)
-#: The typical distance (radians) from a rotation to the nearest of 1000 of
-#: :func:`o3d_spectral.spectra.so3.uniform_rotations` (its docstring: 12 degrees at the
-#: median); for ``n`` of them, this times ``(1000 / n)^(1/3)``.
-SPACING_1000 = np.deg2rad(12.0)
 
 
 def dense_rotations(

@@ -20,17 +20,12 @@ from ..common.parallel import thread_map
 from ..law.loop import Climb
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
-from ..spectra.target_grid import COARSE_FACTOR
+from ..spectra.constants import COARSE_FACTOR
 from .candidates import Candidate, placed_peaks, span_factor
+from .constants import PLACEMENT_SPAN
 
 __all__ = ["Hypothesis", "Placements", "place", "placement_factor", "best_first", "places",
            "PLACEMENT_SPAN"]
-
-#: Between two scans, candidates are placed on a grid where the moving cloud spans at most
-#: this many cells: the voxel itself for the dragon scans (44-54 voxels across) and the
-#: servo's tabletop captures (74-80); two 1.6 m RGB-D frames at 1 cm placed each of their
-#: 48 candidates in 0.27 s at the voxel, in a tenth of that on 2.5-voxel cells.
-PLACEMENT_SPAN = 96.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,22 +21,10 @@ from numpy.typing import NDArray
 from ..evidence.free_motions import turn_axis_point
 from ..evidence.pose import Motion
 from ..spectra import so3
+from .constants import MAX_SUPPORT, MIN_ROTATION_SHARE, TURN_FINISHES
 
 __all__ = ["Axis", "turn_axis", "turned", "holds_every_motion", "MIN_ROTATION_SHARE", "MAX_SUPPORT",
            "TURN_FINISHES"]
-
-#: The least-supported motion is taken as a turn when its rotation (scaled by the
-#: points' RMS radius) is at least this share of the rotation and the slide along its
-#: axis together: a mug's body turned about its axis is 0.96-0.99 rotation, a slide along
-#: a plane or a cylinder's axis nearly none.
-MIN_ROTATION_SHARE = 0.9
-#: Turns are tried only where the inliers carry at most this share of the constraint on
-#: the turn: at a mug's wrong turn, 0.05-0.2 of it (the handle's); on right poses of
-#: objects without a symmetry, about the fit.
-MAX_SUPPORT = 0.3
-#: The turns that fit best after the brief polish, distinct from the pose and from one
-#: another, that are polished and measured whole.
-TURN_FINISHES = 2
 
 
 class Axis(NamedTuple):

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from ..options import CloudOption, SpectralRegistrationOption
 from ..search.options import GlobalSearchOption
 from ..spectra import so3
+from .constants import DESIRED_POSE_ATTEMPTS
 from .control import camera_twist, joint_velocities, limit_velocities
 from .law import ServoLaw
 from .robot import Arm
@@ -28,9 +29,6 @@ from .scene import Sensor, Start, Tabletop, desired_pose, make_tabletop, sample_
 
 __all__ = ["ServoOptions", "Cycle", "ServoRun", "Trial", "pose_errors", "servo", "random_trial",
            "draw_trial"]
-
-#: Desired poses :func:`draw_trial` draws before giving up on finding a start.
-DESIRED_POSE_ATTEMPTS = 5
 
 
 @dataclass(frozen=True)

@@ -20,24 +20,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..common import extras
 from ..spectra import so3
+from .constants import HAND_EYE
 
 __all__ = ["HAND_EYE", "FLANGE_LINK", "Arm"]
 
 #: Name of the flange link in the URDF.
 FLANGE_LINK = "lbr_iiwa_link_7"
-
-#: ``flange_from_camera`` (4x4, metres): optical centre 4 cm along the flange's x axis and
-#: 10 cm along its z (tool) axis, camera axes parallel to the flange's, so the optical
-#: axis is the tool axis. The lateral offset makes the camera's motion couple rotation and
-#: translation, as with a real eye-in-hand sensor mounted beside the tool.
-HAND_EYE = np.array(
-    [
-        [1.0, 0.0, 0.0, 0.04],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0, 0.10],
-        [0.0, 0.0, 0.0, 1.0],
-    ]
-)
 
 
 def load_pybullet():

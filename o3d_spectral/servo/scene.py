@@ -22,6 +22,7 @@ from ..synthetic.models import model_names
 from ..synthetic.sampling import sample_surface
 from ..synthetic.sensor import CameraIntrinsics, DepthNoise
 from ..synthetic.tabletop import table_mesh, tabletop
+from .constants import WORLD_FROM_BASE
 from .robot import Arm
 
 __all__ = [
@@ -34,11 +35,6 @@ __all__ = [
     "sample_start",
 ]
 
-#: ``world_from_base`` (4x4): the iiwa's base 0.65 m behind the table's centre (x < 0), on
-#: the plane of the table top.
-WORLD_FROM_BASE = np.array(
-    [[1.0, 0.0, 0.0, -0.65], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-)
 
 _MAX_TRIES = 500
 _ROLLS = np.linspace(-np.pi / 2, np.pi / 2, 91)  # candidate start rolls, radians

@@ -21,6 +21,8 @@ from collections import OrderedDict
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import CACHED_PLANS
+
 try:  # pragma: no cover - exercised by whichever backend is installed
     import pyfftw
     import pyfftw.builders
@@ -169,9 +171,6 @@ def cropped_inverse(
     out = scipy.fft.ifft(out, axis=1)[:, : size[1]]
     return scipy.fft.irfft(out, n=shape[2], axis=2)[:, :, : size[2]]
 
-
-#: Plans kept per thread (the least recently used beyond this are dropped).
-CACHED_PLANS = 8
 
 _plans = threading.local()  # each thread its own plans: a plan's buffers are overwritten
 _planning = threading.Lock()  # by every call; and FFTW's planner is not thread-safe

@@ -15,6 +15,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import HARMONIC_BLOCK
+
 __all__ = [
     "compile_all", "harmonic_sums", "splat_into", "turned_splat_into", "whitened",
     "whitened_into", "HARMONIC_BLOCK",
@@ -36,11 +38,6 @@ def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
             a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
             b[l, m] = np.sqrt(((l - 1) ** 2 - m * m) / (4.0 * (l - 1) ** 2 - 1.0))
     return c, a, b
-
-
-#: Directions whose harmonics :func:`harmonic_sums` carries through the recurrence
-#: together: each step is then a short loop over them that the compiler vectorises.
-HARMONIC_BLOCK = 64
 
 
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc"})

@@ -28,21 +28,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import map_coordinates
 
 from ..io.rows import largest_side
+from .constants import SHELL_BANDWIDTH, SHELL_GRID, SHELL_SPAN, SHELL_STEP
 from .egi import grid_points
 from .harmonics import sht
 
 __all__ = ["SHELL_GRID", "SHELL_SPAN", "SHELL_BANDWIDTH", "shell_voxel", "shell_coefficients",
            "magnitude_spectrum"]
-
-#: Voxels along each side of the grid whose spectrum is sampled.
-SHELL_GRID = 64
-#: Voxels the object's largest extent spans in that grid (the rest is zero padding,
-#: which samples the spectrum more finely).
-SHELL_SPAN = 20
-#: Bandwidth of each shell's spherical-harmonic expansion (degrees below it).
-SHELL_BANDWIDTH = 24
-#: Radial step between shells, in frequency samples.
-SHELL_STEP = 2
 
 
 def shell_voxel(*points: ArrayLike) -> float:

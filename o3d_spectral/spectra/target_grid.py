@@ -21,23 +21,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..io.cloud import extent
 from ..io.rows import bounds
+from .constants import CACHED_COARSE_GRIDS, CACHED_SPECTRA, SCENE_RATIO
 from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .translation import cross_power_peak
 
 __all__ = ["Placement", "TargetGrid"]
 
-#: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
-CACHED_SPECTRA = 8
-#: Coarser grids kept at most (:meth:`TargetGrid.coarsened`; a servo run meets many
-#: captures: keep the last few).
-CACHED_COARSE_GRIDS = 4
-#: A fixed cloud whose radius exceeds a moving one's by this factor holds more than the
-#: moving cloud: a scene (:meth:`TargetGrid.holds_more`).
-SCENE_RATIO = 1.5
-#: Voxel of the grid candidates are first placed on between two views, in voxels (an
-#: eighth of the FFT; :meth:`TargetGrid.coarsened`).
-COARSE_FACTOR = 2.0
 #: Precision of the grids' FFTs: single halves their time, and the sub-voxel peak fit
 #: does not need more.
 PRECISION = "single"

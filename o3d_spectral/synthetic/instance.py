@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import open3d as o3d
 
+from o3d_spectral.synthetic.constants import BACKGROUND, MAX_TRIES
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
@@ -19,11 +20,6 @@ __all__ = ["BACKGROUND", "CONDITIONS", "MAX_TRIES", "Instance", "SceneOptions"]
 
 CONDITIONS: tuple[str, ...] = ("full", "partial", "occluded", "cluttered")
 
-#: Random draws a placement (camera, occluder, object on the table) makes before giving up.
-MAX_TRIES = 200
-
-#: Label of table and occluder points in ``Instance.target_labels``.
-BACKGROUND = -1
 
 _MODEL_SEED = 20240601  # fixed: a model's source cloud is the same in every suite
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from o3d_spectral.io.files import atomic_write_text
+from o3d_spectral.synthetic.constants import MAX_TRANSLATION
 from o3d_spectral.synthetic.instance import CONDITIONS
 
 __all__ = ["MAX_TRANSLATION", "atomic_write_text", "check_manifest", "check_pose", "instance_path",
@@ -31,10 +32,6 @@ def _kind(value: object, expected: type) -> bool:
     if expected is int:
         return isinstance(value, numbers.Integral) and not isinstance(value, bool)
     return isinstance(value, expected)
-
-
-#: Largest translation coordinate a pose may have, in its file's units (metres or mm).
-MAX_TRANSLATION = 1e6
 
 
 def check_pose(where: object, key: str, value: object, *, atol: float = 1e-6) -> np.ndarray:

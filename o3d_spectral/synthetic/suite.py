@@ -21,6 +21,7 @@ import open3d as o3d
 from o3d_spectral.common import extras
 from o3d_spectral.io.files import atomic_write_cloud, check_cloud_file, check_finite
 from o3d_spectral.io.folder_lock import folder_lock, foreign_entries
+from o3d_spectral.synthetic.constants import VERSION
 from o3d_spectral.synthetic.instance import CONDITIONS, Instance, SceneOptions
 from o3d_spectral.synthetic.manifest import atomic_write_text, instance_path, read_manifest
 from o3d_spectral.synthetic.models import model_names
@@ -37,9 +38,8 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
-#: The manifest's format and its version, raised when a field changes meaning.
+#: The manifest's format (its version: :data:`o3d_spectral.synthetic.constants.VERSION`).
 FORMAT = "o3d-spectral-suite"
-VERSION = 1
 
 
 def instance_rng(seed: int, index: int) -> np.random.Generator:

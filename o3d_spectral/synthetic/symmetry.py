@@ -19,6 +19,7 @@ import open3d as o3d
 
 from o3d_spectral.refinement.icp import point_to_plane_icp
 from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.constants import REFINE_DISTANCE
 from o3d_spectral.synthetic.models import load_model
 
 __all__ = [
@@ -31,8 +32,6 @@ __all__ = [
 ]
 
 
-#: Correspondence distance (m) of the ICP that refines each symmetry axis on the mesh.
-REFINE_DISTANCE = 0.01
 #: Rotation (degrees) about a continuous axis whose self-alignment refines that axis.
 _CONTINUOUS_PROBE = 90.0
 

@@ -14,23 +14,18 @@ from __future__ import annotations
 import numpy as np
 
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
+from o3d_spectral.synthetic.constants import (
+    DISTANCE,
+    TURNTABLE_ANGLES,
+    TURNTABLE_ELEVATIONS,
+    TURNTABLE_MIN_POINTS,
+    TURNTABLE_TRIES,
+)
 from o3d_spectral.synthetic.instance import Instance, SceneOptions
 from o3d_spectral.synthetic.sampling import model_mesh
 
 __all__ = ["turntable_pair", "TURNTABLE_ANGLES", "TURNTABLE_ELEVATIONS", "DISTANCE",
-           "MIN_VIEW_POINTS"]
-
-#: Turntable angles (degrees) between the two views that the benchmarks use.
-TURNTABLE_ANGLES = (30, 45, 60, 90, 120, 135)
-#: Camera elevations (degrees above the turntable's plane) that the benchmarks use.
-TURNTABLE_ELEVATIONS = (20, 45)
-#: Camera distance from the model's centre, metres (a depth camera's working distance for
-#: objects 5-25 cm across).
-DISTANCE = 0.45
-#: Fewest points of a view: a view that shows less (a thin object edge-on) is drawn again.
-MIN_VIEW_POINTS = 500
-#: Draws of the azimuth before giving up on a pair.
-MAX_TRIES = 20
+           "TURNTABLE_MIN_POINTS"]
 
 
 def _camera(centre: np.ndarray, azimuth: float, elevation: float) -> np.ndarray:
@@ -70,21 +65,21 @@ def turntable_pair(
     Raises
     ------
     RuntimeError
-        If no azimuth of :data:`MAX_TRIES` gives both views :data:`MIN_VIEW_POINTS`.
+        If no azimuth of :data:`TURNTABLE_TRIES` gives both views :data:`TURNTABLE_MIN_POINTS`.
     """
     options = options or SceneOptions()
     mesh = model_mesh(name)
     centre = np.asarray(mesh.get_center())
-    for _ in range(MAX_TRIES):
+    for _ in range(TURNTABLE_TRIES):
         azimuth = rng.uniform(0.0, 2.0 * np.pi)
         poses = [_camera(centre, azimuth + np.deg2rad(turn), np.deg2rad(elevation_deg))
                  for turn in (0.0, angle_deg)]
         scans = [scan_meshes([mesh], options.intrinsics, pose, noise=options.noise, rng=rng)
                  for pose in poses]
-        if min(len(scan.points) for scan in scans) >= MIN_VIEW_POINTS:
+        if min(len(scan.points) for scan in scans) >= TURNTABLE_MIN_POINTS:
             break
     else:
-        raise RuntimeError(f"no turntable view of {name} shows {MIN_VIEW_POINTS} points")
+        raise RuntimeError(f"no turntable view of {name} shows {TURNTABLE_MIN_POINTS} points")
     source_pose, target_pose = poses
     metadata = {
         "object": name, "scene_objects": [name], "angle_deg": float(angle_deg),

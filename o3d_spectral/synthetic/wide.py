@@ -17,21 +17,13 @@ import numpy as np
 import open3d as o3d
 
 from o3d_spectral.synthetic.camera import look_at, render, scan_from_view
+from o3d_spectral.synthetic.constants import MIN_VIEW_POINTS, NOISE, OBJECTS_PER_M2, SPACING
 from o3d_spectral.synthetic.instance import BACKGROUND, MAX_TRIES, Instance, SceneOptions
 from o3d_spectral.synthetic.models import model_names
 from o3d_spectral.synthetic.sampling import rigid, sample_rotation, sample_surface
 from o3d_spectral.synthetic.tabletop import table_mesh, tabletop
 
 __all__ = ["wide_scene_instance", "OBJECTS_PER_M2", "SPACING", "NOISE", "MIN_VIEW_POINTS"]
-
-#: Objects per square metre of table (the cluttered suite's tabletops hold 3-8 on 0.48 m²).
-OBJECTS_PER_M2 = 8.0
-#: Spacing of the reconstruction's points, metres.
-SPACING = 0.004
-#: Standard deviation of the reconstruction's noise, metres.
-NOISE = 0.001
-#: Fewest points of the object's view.
-MIN_VIEW_POINTS = 500
 
 
 def _sampled(mesh: o3d.geometry.TriangleMesh, rng: np.random.Generator) -> np.ndarray:

@@ -33,16 +33,10 @@ from ..evidence.diagnostics import may_be_wrong
 from ..evidence.poses import distinct
 from ..registration import registration_spectral_global
 from ..result import SpectralRegistrationResult
+from .constants import VOXEL_LADDER
 from .suggestion import suggest_voxel_size
 
 __all__ = ["VoxelTrial", "voxel_trial", "VOXEL_LADDER"]
-
-#: Factors of :func:`~o3d_spectral.suggest_voxel_size`'s size tried, in this order: the
-#: rule's size, a coarser one (a median 0.6 of the rule's time; a YCB-Video crop
-#: lost at 3.6 mm was right at 5-8 mm), a finer one (dragon scans 96-120 degrees apart
-#: lost at the rule's 6.3-7.2 mm were right at 5 mm). ``eval/voxel_advice.py --trial``
-#: measures it (docs/conventions.md).
-VOXEL_LADDER = (1.0, 1.4, 0.75)
 
 
 @dataclass

@@ -1,0 +1,41 @@
+"""Numeric constants of the spectral maths (``o3d_spectral.spectra``), by the module using them."""
+
+# -- spectra.fft: the FFTs -----------------------------------------------------------------
+
+#: Plans kept per thread (the least recently used beyond this are dropped).
+CACHED_PLANS = 8
+
+
+# -- spectra.kernels: the compiled loops ---------------------------------------------------
+
+#: Directions whose harmonics :func:`harmonic_sums` carries through the recurrence
+#: together: each step is then a short loop over them that the compiler vectorises.
+HARMONIC_BLOCK = 64
+
+
+# -- spectra.shells: rotations from the shells ---------------------------------------------
+
+#: Voxels along each side of the grid whose spectrum is sampled.
+SHELL_GRID = 64
+#: Voxels the object's largest extent spans in that grid (the rest is zero padding,
+#: which samples the spectrum more finely).
+SHELL_SPAN = 20
+#: Bandwidth of each shell's spherical-harmonic expansion (degrees below it).
+SHELL_BANDWIDTH = 24
+#: Radial step between shells, in frequency samples.
+SHELL_STEP = 2
+
+
+# -- spectra.target_grid: the fixed cloud's grid -------------------------------------------
+
+#: Fixed-grid spectra kept at most (servoing meets many shapes: keep the last few).
+CACHED_SPECTRA = 8
+#: Coarser grids kept at most (:meth:`TargetGrid.coarsened`; a servo run meets many
+#: captures: keep the last few).
+CACHED_COARSE_GRIDS = 4
+#: A fixed cloud whose radius exceeds a moving one's by this factor holds more than the
+#: moving cloud: a scene (:meth:`TargetGrid.holds_more`).
+SCENE_RATIO = 1.5
+#: Voxel of the grid candidates are first placed on between two views, in voxels (an
+#: eighth of the FFT; :meth:`TargetGrid.coarsened`).
+COARSE_FACTOR = 2.0
