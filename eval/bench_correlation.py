@@ -13,8 +13,12 @@ the global call does, then, on one worker and on ``--workers`` workers in turn,
 
 Reports each, the gain of the workers over one, and the share of the one-worker time that
 did not run in parallel as that gain implies (Amdahl's law: ``(W / gain - 1) / (W - 1)``
-for ``W`` workers; the GIL held, or anything else that serialises, such as memory
-bandwidth).
+for ``W`` workers). The process's CPU time tells the two causes apart: *busy* is the share
+of the ``W`` workers' wall time they ran (CPU time over ``W`` times the wall time; what is
+left they waited: on the GIL, or for the last batch), and *CPU per rotation* the CPU time
+the workers spent over what one worker spent on the same work (over 1: each core did the
+same work slower, sharing the memory and caches). The gain is ``W`` times the busy share
+with ``W`` workers over that with one, over that ratio.
 
 Usage: python eval/bench_correlation.py --suites SUITES --out out/bench_correlation
        [--groups dragon_96 turntable_90 ...] [--count 512] [--workers 2]
@@ -29,6 +33,7 @@ import bench_speed as speed  # first: it sets one thread before numpy and Open3D
 import argparse
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -47,15 +52,37 @@ def serial_share(gain: float, workers: int) -> float:
     return max(0.0, (workers / gain - 1.0) / (workers - 1.0))
 
 
-def alternated(work, workers: int, repeats: int) -> tuple[float, float]:
-    """Median seconds of ``work(w)`` on one worker and on ``workers``, run in turn."""
-    seconds: dict[int, list[float]] = {1: [], workers: []}
+class Timing(NamedTuple):
+    """Median wall and CPU seconds (the whole process's) of one piece of work, on one
+    worker and on ``workers``."""
+
+    wall_one: float
+    wall_many: float
+    cpu_one: float
+    cpu_many: float
+
+    def row(self, workers: int, scale: float = 1.0) -> dict:
+        """The gain and its parts (see the module docstring); times times ``scale``."""
+        gain = self.wall_one / self.wall_many
+        return {"one": scale * self.wall_one, "many": scale * self.wall_many, "gain": gain,
+                "serial_share": serial_share(gain, workers),
+                "busy_one": self.cpu_one / self.wall_one,
+                "busy_many": self.cpu_many / (workers * self.wall_many),
+                "cpu_ratio": self.cpu_many / self.cpu_one}
+
+
+def alternated(work, workers: int, repeats: int) -> Timing:
+    """Median wall and CPU seconds of ``work(w)`` on one worker and on ``workers``, run
+    in turn."""
+    wall: dict[int, list[float]] = {1: [], workers: []}
+    cpu: dict[int, list[float]] = {1: [], workers: []}
     for _ in range(repeats):
         for w in (1, workers):
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             work(w)
-            seconds[w].append(time.perf_counter() - start)
-    return float(np.median(seconds[1])), float(np.median(seconds[workers]))
+            wall[w].append(time.perf_counter() - start)
+            cpu[w].append(time.process_time() - start_cpu)
+    return Timing(*(float(np.median(d[k])) for d in (wall, cpu) for k in (1, workers)))
 
 
 def measure(
@@ -72,30 +99,29 @@ def measure(
     for name, factor in (("coarse", coarse), ("fine", fine)):
         correlation, cloud = turned_correlation(stepper, moving, factor)
         correlation.peaks(cloud, rotations[:8], workers)  # warm-up
-        one, many = alternated(lambda w, c=correlation, m=cloud: c.peaks(m, rotations, w),
-                               workers, repeats)
+        timing = alternated(lambda w, c=correlation, m=cloud: c.peaks(m, rotations, w),
+                            workers, repeats)
         rows.append({"group": task.group, "instance": task.name, "what": f"{name} grid",
                      "voxels": factor, "fft": "x".join(str(n) for n in correlation.shape),
-                     "one": 1e3 * one / count, "many": 1e3 * many / count, "unit": "ms/rotation",
-                     "gain": one / many, "serial_share": serial_share(one / many, workers)})
-    one, many = alternated(lambda w: dense_candidates(stepper, moving, dense_count,
-                                                      two_scans=two_scans, workers=w),
-                           workers, repeats)
+                     "unit": "ms/rotation", **timing.row(workers, 1e3 / count)})
+    timing = alternated(lambda w: dense_candidates(stepper, moving, dense_count,
+                                                   two_scans=two_scans, workers=w),
+                        workers, repeats)
     rows.append({"group": task.group, "instance": task.name, "what": "dense sweep",
-                 "voxels": float("nan"), "fft": "", "one": one, "many": many, "unit": "s",
-                 "gain": one / many, "serial_share": serial_share(one / many, workers)})
+                 "voxels": float("nan"), "fft": "", "unit": "s", **timing.row(workers)})
     return rows
 
 
 def markdown(rows: list[dict], workers: int) -> str:
     head = (f"| group | what | voxels | FFT | 1 worker | {workers} workers | unit | gain "
-            f"| not in parallel |")
-    lines = [head, "|" + " --- |" * 9]
+            f"| not in parallel | busy, 1 | busy, {workers} | CPU per rotation |")
+    lines = [head, "|" + " --- |" * 12]
     for r in rows:
         voxels = "" if np.isnan(r["voxels"]) else f"{r['voxels']:g}"
         lines.append(f"| {r['group']} | {r['what']} | {voxels} | {r['fft']} | {r['one']:.3f} "
                      f"| {r['many']:.3f} | {r['unit']} | {r['gain']:.2f}x "
-                     f"| {100 * r['serial_share']:.0f}% |")
+                     f"| {100 * r['serial_share']:.0f}% | {100 * r['busy_one']:.0f}% "
+                     f"| {100 * r['busy_many']:.0f}% | {r['cpu_ratio']:.2f}x |")
     return "\n".join(lines)
 
 
