@@ -987,15 +987,20 @@ def dense_cores() -> str:
     lines = [[r["group"], r["what"],
               "" if r["voxels"] in ("", "nan") else f"{float(r['voxels']):g}", r["fft"],
               f"{float(r['one']):.3f}", f"{float(r['many']):.3f}", r["unit"],
-              f"{float(r['gain']):.2f}x", f"{100 * float(r['serial_share']):.0f}%"]
+              f"{float(r['gain']):.2f}x", f"{100 * float(r['serial_share']):.0f}%",
+              f"{100 * float(r['busy_one']):.0f}%", f"{100 * float(r['busy_many']):.0f}%",
+              f"{float(r['cpu_ratio']):.2f}x"]
              for r in rows]
     return "\n".join([
         table(["group", "what", "voxels", "FFT", "1 worker", "2 workers", "unit", "gain",
-               "not in parallel"], lines),
+               "not in parallel", "busy, 1", "busy, 2", "CPU per rotation"], lines),
         "",
         provenance("dense_cores") + " Medians of runs on one worker and on two in turn; "
         "not in parallel: the share of the one-worker time that the gain implies ran "
-        "alone (Amdahl's law).",
+        "alone (Amdahl's law); busy: the process's CPU time over the workers' wall time "
+        "(the rest they waited, on the GIL or for the last batch); CPU per rotation: the "
+        "CPU time two workers spent over what one spent on the same work (over 1x: each "
+        "core did it slower, the two sharing memory and caches).",
     ])
 
 
