@@ -154,3 +154,10 @@ TURN_REACH = 4.0
 #: A rival whose turn from the returned pose moves the source's points this far (median,
 #: voxels) from its own surface or more is a different pose, not a symmetry.
 ASYMMETRIC = 0.15
+#: A tree of the fixed points serves a region this many times the ball of the posed points
+#: and its fit's distance (:class:`FixedPoints`): room for the turns and polished rivals
+#: about the same centroid, which then need no tree of their own.
+REGION_SLACK = 1.5
+#: Where a region would hold more than this share of the fixed cloud, one tree of the whole
+#: cloud serves every fit instead (two views of one object).
+WHOLE_SHARE = 0.5

@@ -95,7 +95,7 @@ def verdict(
     -------
     Verdict
     """
-    fixed_points = FixedPoints(fixed)  # one KD-tree for every fit
+    fixed_points = FixedPoints(fixed)  # its trees serve every fit
     measured = measure(stepper, moving, fixed_points, pose, others, culls=culls)
     rival = ambiguity(stepper, moving, fixed_points, pose, measured, culls=culls)
     evidence = pose_evidence(

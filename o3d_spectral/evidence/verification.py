@@ -32,7 +32,7 @@ import open3d as o3d
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ..io.cloud import MIN_POINTS
+from ..io.cloud import MIN_POINTS, extent
 from ..io.rows import known
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..refinement.icp import near_pose
@@ -41,10 +41,12 @@ from .constants import (
     AMBIGUITY_MARGIN,
     AMBIGUITY_MIN_FIT,
     ASYMMETRIC,
+    REGION_SLACK,
     RIVALS,
     TURN_ANGLES,
     TURN_POLISH,
     TURN_REACH,
+    WHOLE_SHARE,
 )
 from .fit import fit
 from .poses import distinct
@@ -56,8 +58,18 @@ __all__ = ["verify", "measure", "Verification", "ambiguity", "Ambiguity", "turns
 
 
 class FixedPoints:
-    """The fixed cloud and one KD-tree of its points, built once for every fit that
+    """The fixed cloud and KD-trees of its points, built once for every fit that
     measures poses against it.
+
+    A fit asks which points lie within a distance of the fixed cloud: only the fixed
+    points within that distance of the ball holding the posed points can answer, so a
+    tree of those alone answers exactly as a tree of the whole cloud would. Each tree
+    holds the fixed points about one region, :data:`REGION_SLACK` times the ball and
+    its distance, and serves every later fit whose ball and distance lie inside it (the
+    returned pose, its turns and polished rivals about its centroid); where a region
+    would hold more than :data:`WHOLE_SHARE` of the cloud, one tree of the whole cloud
+    serves everything. An object's view against a scene builds a tree of the object's
+    neighbourhood, not of the scene; two views of one object, one of the whole view.
 
     Parameters
     ----------
@@ -67,16 +79,33 @@ class FixedPoints:
 
     def __init__(self, cloud: o3d.geometry.PointCloud) -> None:
         self.cloud = cloud
-        points = np.asarray(cloud.points)
-        self.tree = cKDTree(points) if len(points) else None
+        self.points = np.asarray(cloud.points)
+        self._regions: list[tuple[NDArray[np.float64], float, cKDTree]] = []
 
     def share(self, points: NDArray[np.float64], distance: float) -> float:
         """Share of ``points`` (K, 3, metres) within ``distance`` (metres) of the fixed
         points (0 when either holds none)."""
-        if self.tree is None or len(points) == 0:
+        if len(self.points) == 0 or len(points) == 0:
             return 0.0
-        distances, _ = self.tree.query(points, distance_upper_bound=distance)
+        distances, _ = self._tree(points, distance).query(points, distance_upper_bound=distance)
         return float(np.mean(np.isfinite(distances)))
+
+    def _tree(self, points: NDArray[np.float64], distance: float) -> cKDTree:
+        """A tree of every fixed point within ``distance`` of ``points``' ball: a kept
+        one whose region holds that ball, or a new one."""
+        centre, radius = extent(points)
+        reach = radius + distance
+        for region_centre, region_reach, tree in self._regions:
+            if float(np.linalg.norm(centre - region_centre)) + reach <= region_reach:
+                return tree
+        region_reach = REGION_SLACK * reach
+        offsets = self.points - centre
+        inside = np.einsum("ij,ij->i", offsets, offsets) <= region_reach * region_reach
+        if np.count_nonzero(inside) > WHOLE_SHARE * len(self.points):
+            inside, region_reach = slice(None), np.inf
+        tree = cKDTree(self.points[inside])
+        self._regions.append((centre, region_reach, tree))
+        return tree
 
 
 def verify(
