@@ -32,7 +32,7 @@ import open3d as o3d
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ..io.cloud import MIN_POINTS, extent
+from ..io.cloud import MIN_POINTS, extent, in_ball
 from ..io.rows import known
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..refinement.icp import near_pose
@@ -99,8 +99,7 @@ class FixedPoints:
             if float(np.linalg.norm(centre - region_centre)) + reach <= region_reach:
                 return tree
         region_reach = REGION_SLACK * reach
-        offsets = self.points - centre
-        inside = np.einsum("ij,ij->i", offsets, offsets) <= region_reach * region_reach
+        inside = in_ball(self.points, centre, region_reach)
         if np.count_nonzero(inside) > WHOLE_SHARE * len(self.points):
             inside, region_reach = slice(None), np.inf
         tree = cKDTree(self.points[inside])

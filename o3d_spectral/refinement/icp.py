@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ..common.parallel import one_open3d_thread
-from ..io.cloud import extent
+from ..io.cloud import extent, in_ball
 from ..io.density import first_per_cell
 from ..io.rows import lengths
 from ..options import RefinementOption
@@ -52,9 +52,7 @@ def near_pose(
     centroid, reach = extent(source_points)
     reach += margin
     centre = transformation[:3, :3] @ centroid + transformation[:3, 3]
-    points = np.asarray(target.points)
-    offsets = points - centre
-    keep = np.flatnonzero(np.einsum("ij,ij->i", offsets, offsets) <= reach * reach)
+    keep = np.flatnonzero(in_ball(np.asarray(target.points), centre, reach))
     return target.select_by_index(keep), keep
 
 
