@@ -170,16 +170,6 @@ def sections() -> list[Section]:
     return [s for s in out if s.constants]
 
 
-def twice() -> list[str]:
-    """Names a catalogue binds more than once (the later would hide the earlier)."""
-    found = []
-    for path in sorted(PACKAGE.rglob(CATALOGUE)):
-        names = [c.name for c in module_constants(path)]
-        found += [f"{path.relative_to(ROOT)} {name}" for name in sorted(set(names))
-                  if names.count(name) > 1]
-    return found
-
-
 def outside() -> list[Constant]:
     """Numeric constants that live outside a catalogue."""
     return [c for path in sorted(PACKAGE.rglob("*.py")) if path.name != CATALOGUE
@@ -225,7 +215,9 @@ def main() -> int:
     every = [c for s in found for c in s.constants]
     bare = [f"{c.module}:{c.line} {c.name}" for c in every if not c.reason]
     strays = [f"{c.module}:{c.line} {c.name}" for c in outside()]
-    doubled = twice()
+    names = [(c.module, c.name) for c in every]  # bound twice: the later hides the earlier
+    doubled = [f"{module} {name}" for module, name in sorted(set(names))
+               if names.count((module, name)) > 1]
     text = page(found)
     if args.check:
         stale = not PAGE.is_file() or PAGE.read_text() != text
