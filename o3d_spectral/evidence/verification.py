@@ -32,8 +32,8 @@ import open3d as o3d
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ..io.cloud import MIN_POINTS, extent, in_ball
-from ..io.rows import known
+from ..io.cloud import MIN_POINTS, extent
+from ..io.rows import in_ball, known
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..refinement.icp import near_pose
 from ..spectra import so3

@@ -21,7 +21,7 @@ from .signs import SIGN_DISAGREEMENT, THIN_WALLS, neighbour_signs
 
 __all__ = [
     "CloudArrays", "CloudReading", "PreparedCloud", "as_arrays", "to_legacy", "prepare",
-    "MIN_POINTS", "extent", "in_ball", "dense_bounds",
+    "MIN_POINTS", "extent", "dense_bounds",
 ]
 
 
@@ -121,15 +121,6 @@ def extent(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     point from it (metres): the ball that holds the cloud under any rotation about it."""
     centroid = points.mean(axis=0)
     return centroid, float(np.max(lengths(points - centroid)))
-
-
-def in_ball(
-    points: NDArray[np.float64], centre: NDArray[np.float64], radius: float
-) -> NDArray[np.bool_]:
-    """Whether each of ``points`` (N, 3) lies within ``radius`` of ``centre`` (3,), all in
-    metres: (N,), squared distances against the squared radius."""
-    offsets = points - centre
-    return np.einsum("ij,ij->i", offsets, offsets) <= radius * radius
 
 
 def dense_bounds(

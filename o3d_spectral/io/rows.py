@@ -1,4 +1,4 @@
-"""Exact reductions of point and vector arrays (N, 3), one column at a time.
+"""Exact reductions of point and vector arrays (N, 3), one column at a time, and a ball test.
 
 NumPy reduces an (N, 3) array across its three columns, or down each of them at once,
 through a slow strided loop: for a 55k-point depth capture, ``points.min(axis=0)`` takes
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["bounds", "largest_side", "lengths", "every", "some", "known"]
+__all__ = ["bounds", "largest_side", "lengths", "every", "some", "known", "in_ball"]
 
 
 def bounds(points: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -50,3 +50,12 @@ def known(normals: NDArray[np.floating]) -> NDArray[np.bool_]:
     that mark a point whose normal is unknown."""
     x, y, z = normals[:, 0], normals[:, 1], normals[:, 2]
     return x * x + y * y + z * z > 0.5
+
+
+def in_ball(
+    points: NDArray[np.float64], centre: NDArray[np.float64], radius: float
+) -> NDArray[np.bool_]:
+    """Whether each of ``points`` (N, 3) lies within ``radius`` of ``centre`` (3,), all in
+    metres: (N,), squared distances against the squared radius."""
+    offsets = points - centre
+    return np.einsum("ij,ij->i", offsets, offsets) <= radius * radius

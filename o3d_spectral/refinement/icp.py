@@ -15,9 +15,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ..common.parallel import one_open3d_thread
-from ..io.cloud import extent, in_ball
+from ..io.cloud import extent
 from ..io.density import first_per_cell
-from ..io.rows import lengths
+from ..io.rows import in_ball, lengths
 from ..options import RefinementOption
 from .constants import GUARD_SHARE, REACH, RECUTS, TUTORIAL_DISTANCE
 
