@@ -234,6 +234,9 @@ def register(case: Case) -> dict:
            "warning_kinds": " ".join(kind_of(w) for w in result.warnings),
            "notes": len(result.notes),
            "source_view": int(result.source_reading.view is not None),
+           "ambiguity_deg": "" if result.ambiguity is None else result.ambiguity,
+           "other_right": "" if result.ambiguous_transformation is None
+           else int(case.score(result.ambiguous_transformation)[2]),
            "free_motions": " ".join(
                f"{m.kind}:{m.extent:.4g}:{'symmetry' if m.symmetric else 'unfixed'}"
                for m in evidence.free_motions)}
@@ -366,15 +369,22 @@ def fold_of(row: dict, by: str) -> str:
 def silent(rows: list[dict], right: np.ndarray) -> dict:
     """The library's calls as they came back: wrong poses with confidence >= 0.5 and no
     warning of any kind (silent), right poses with a warning of any kind, and with a
-    warning about the pose (:data:`POSE_WARNINGS`)."""
+    warning about the pose (:data:`POSE_WARNINGS`); of the right poses warned as
+    ambiguous, those whose other pose (``result.ambiguous_transformation``) is wrong: a
+    wrong answer the data fit as well, which the warning rightly names (rows that
+    recorded it)."""
     confident = np.array([float(r["confidence"]) >= confidence_model.WARN_BELOW for r in rows])
     warned = np.array([int(r["warnings"]) > 0 for r in rows])
     about_pose = np.array([int(r["pose_warnings"]) > 0 for r in rows])
+    ambiguous = np.array(["ambiguous" in r["warning_kinds"].split() for r in rows])
+    other_wrong = np.array([str(r.get("other_right", "")) == "0" for r in rows])
     wrong = right == 0
     return {"calls": len(rows), "wrong": int(wrong.sum()),
             "silent_wrong": int(np.sum(wrong & confident & ~warned)),
             "right": int((~wrong).sum()), "right_warned": int(np.sum(~wrong & warned)),
-            "right_pose_warned": int(np.sum(~wrong & about_pose))}
+            "right_pose_warned": int(np.sum(~wrong & about_pose)),
+            "right_ambiguous": int(np.sum(~wrong & ambiguous)),
+            "right_ambiguous_other_wrong": int(np.sum(~wrong & ambiguous & other_wrong))}
 
 
 def leave_one_out(rows: list[dict], X: np.ndarray, right: np.ndarray,

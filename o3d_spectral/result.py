@@ -74,6 +74,10 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         degrees (a symmetric object, or one the target shows too little of to tell);
         None otherwise. A warning says so; a note where the rival is the returned pose
         turned by a symmetry of the whole source (a model, not a view): both are right.
+    ambiguous_transformation : ndarray, shape (4, 4), or None
+        Where :attr:`ambiguity` is set, that distinct pose (source to target, as
+        ``transformation``; polished where it was): the other answer the data allow, to
+        check against what the object's symmetry or the scene says; None otherwise.
     free_motions : tuple of FreeMotion
         The motions of the source that leave its fit unchanged farther than a pose's
         tolerance (:mod:`o3d_spectral.evidence.free_motions`): a turn about an axis or a slide
@@ -123,6 +127,7 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         self.fit = 0.0
         self.rival_fit = 0.0
         self.ambiguity: float | None = None
+        self.ambiguous_transformation: NDArray[np.float64] | None = None
         self.pose_evidence: PoseEvidence | None = None
         self.free_motions: tuple[FreeMotion, ...] = ()
         self.source_reading = CloudReading()

@@ -210,6 +210,8 @@ def _filled(
     result.num_iterations = len(best.history)
     result.source_reading, result.target_reading = readings["source"], readings["target"]
     result.fit, result.ambiguity = judged.fit, judged.ambiguity
+    rival = None if judged.rival is None else judged.rival @ run.init  # source to target
+    result.ambiguous_transformation = rival
     result.rival_fit = max(result.rival_fit, judged.rival_fit)  # the confirmation's too
     result.pose_evidence, result.confidence = judged.evidence, judged.confidence
     result.warnings, result.notes = judged.warnings, judged.notes
@@ -218,6 +220,8 @@ def _filled(
         result.target_viewpoint = run.stepper.viewpoint.copy()
     if run.offset is not None:  # back to the caller's frame
         result.transformation = centring.shifted(pose, -run.offset)
+        if rival is not None:
+            result.ambiguous_transformation = centring.shifted(rival, -run.offset)
         result.history = centring.uncentred_history(result.history, run.offset)
         result.hypotheses = [(centring.shifted(M, -run.offset), s) for M, s in result.hypotheses]
         result.free_motions = tuple(m.shifted(run.offset) for m in judged.free_motions)

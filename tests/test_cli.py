@@ -34,6 +34,8 @@ def test_register_prints_matrix_and_json(tmp_path, capsys):
     assert summary["notes"] == ["symmetric: a pose 180 deg away fits as well, the source "
                                 "turned onto itself: both are right (result.ambiguity)"]
     assert summary["confidence"] > 0.5 and summary["ambiguity_deg"] == pytest.approx(180, abs=5)
+    twin = np.array(summary["ambiguous_transformation"])  # the other pose, half a turn away
+    assert twin.shape == (4, 4) and np.allclose(twin[:3, :3] @ twin[:3, :3].T, np.eye(3))
     assert summary["source_normals"]["from"] == "given"
     assert summary["target_normals"]["view"] is None  # a whole model: no view, no culling
     assert summary["target_viewpoint"] is None

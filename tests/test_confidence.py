@@ -198,6 +198,39 @@ def test_a_box_turned_half_a_turn_is_right_and_its_twin_a_note():
         "are right (result.ambiguity)"]
 
 
+@pytest.mark.parametrize("call", ["global", "local"])
+def test_the_ambiguous_pose_is_returned_in_the_callers_frame(call):
+    """A box far from the origin against itself turned half a turn: the pose that fits as
+    well is given as a rigid transformation of the source onto the target, in the
+    caller's frame (the local call's from an ``init`` near the truth): ``result.ambiguity``
+    degrees from the returned one, and it lays the box onto the target as well as the
+    returned pose does."""
+    box = mesh_cloud(o3d.geometry.TriangleMesh.create_box(0.10, 0.06, 0.03))
+    box.translate((3.0, -2.0, 1.0))
+    target, T = turned(box, 180.0, (0.0, 0.0, 1.0), (0.02, 0.01, 0.0))
+    if call == "global":
+        result = o3d_spectral.registration_spectral_global(box, target, VOXEL)
+    else:
+        init = T @ rigid(so3.exp(np.deg2rad(4.0) * np.array([0.6, 0.0, 0.8])), np.zeros(3))
+        result = o3d_spectral.registration_spectral(box, target, VOXEL, init)
+    other = result.ambiguous_transformation
+    assert result.ambiguity is not None and other.shape == (4, 4)
+    assert np.allclose(other[:3, :3] @ other[:3, :3].T, np.eye(3), atol=1e-9)
+    assert np.allclose(other[3], [0.0, 0.0, 0.0, 1.0]) and np.linalg.det(other[:3, :3]) > 0
+    between = np.asarray(result.transformation)[:3, :3].T @ other[:3, :3]
+    assert np.rad2deg(so3.rotation_angle(between)) == pytest.approx(result.ambiguity, abs=1e-6)
+    fits = [o3d.pipelines.registration.evaluate_registration(box, target, VOXEL, T).fitness
+            for T in (np.asarray(result.transformation), other)]
+    assert fits[1] >= fits[0] - 0.05 and fits[1] > 0.8
+
+
+def test_an_unambiguous_pose_has_no_ambiguous_transformation():
+    source = sample_model("power_drill", 6000)
+    target, _ = turned(source, 10.0, (0.0, 0.0, 1.0), (0.01, 0.0, 0.0))
+    result = o3d_spectral.registration_spectral(source, target, VOXEL)
+    assert result.ambiguity is None and result.ambiguous_transformation is None
+
+
 @pytest.mark.parametrize("mesh", [
     o3d.geometry.TriangleMesh.create_sphere(0.04, resolution=40),
     o3d.geometry.TriangleMesh.create_cylinder(0.03, 0.12, resolution=40),

@@ -282,6 +282,8 @@ def _summary(result, voxel_size: float) -> dict:
         "run_time": result.run_time,
         "confidence": result.confidence,
         "ambiguity_deg": result.ambiguity,
+        "ambiguous_transformation": None if result.ambiguous_transformation is None
+        else result.ambiguous_transformation.tolist(),
         "source_normals": _reading(result.source_reading),
         "target_normals": _reading(result.target_reading),
         "target_viewpoint": None if result.target_viewpoint is None

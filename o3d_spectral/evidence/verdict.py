@@ -45,6 +45,8 @@ class Verdict:
         The best fit of a distinct hypothesis measured here, [0, 1].
     ambiguity : float or None
         The angle to a distinct pose that fits as well, degrees; None where none does.
+    rival : ndarray, shape (4, 4), or None
+        That pose, in the frame of the pose judged; None where none fits as well.
     evidence : PoseEvidence
         The pose's evidence; its free motions in the run's frame.
     confidence : float
@@ -56,6 +58,7 @@ class Verdict:
     fit: float
     rival_fit: float
     ambiguity: float | None
+    rival: NDArray[np.float64] | None
     evidence: PoseEvidence
     confidence: float
     warnings: list[str]
@@ -111,5 +114,6 @@ def verdict(
         confidence=probability, ambiguity=angle,
         symmetric_rival=readings["source"].view is None and rival.symmetric,
         free_motions=evidence.free_motions)
-    return Verdict(measured.fit, measured.rival_fit, angle, evidence, probability, warnings,
+    return Verdict(measured.fit, measured.rival_fit, angle,
+                   rival.pose if rival.ambiguous else None, evidence, probability, warnings,
                    notes)

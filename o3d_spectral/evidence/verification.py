@@ -214,12 +214,15 @@ class Ambiguity:
         nearest source point, in voxels (0 for an exact symmetry; :data:`ASYMMETRIC`
         and over: two poses that differ, which the target cannot tell apart); inf when
         none was found.
+    pose : ndarray, shape (4, 4), or None
+        That distinct pose (moving cloud to fixed cloud); None when none was found.
     """
 
     fit: float = 0.0
     angle: float = 0.0
     ambiguous: bool = False
     self_match: float = float("inf")
+    pose: NDArray[np.float64] | None = None
 
     @property
     def symmetric(self) -> bool:
@@ -275,7 +278,7 @@ def ambiguity(
     angle = float(np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ best[:3, :3])))
     ambiguous = measured.fit >= AMBIGUITY_MIN_FIT and best_fit >= measured.fit - AMBIGUITY_MARGIN
     return Ambiguity(best_fit, angle, ambiguous,
-                     _self_match(moving, np.linalg.inv(pose) @ best, stepper.voxel_size))
+                     _self_match(moving, np.linalg.inv(pose) @ best, stepper.voxel_size), best)
 
 
 def _self_match(moving: MovingCloud, motion: NDArray[np.float64], voxel_size: float) -> float:
