@@ -210,7 +210,9 @@ def _filled(
     result.num_iterations = len(best.history)
     result.source_reading, result.target_reading = readings["source"], readings["target"]
     result.fit, result.ambiguity = judged.fit, judged.ambiguity
-    rival = None if judged.rival is None else judged.rival @ run.init  # source to target
+    rival = judged.rival  # of the moving cloud: the source once posed by init
+    if rival is not None:  # finite as the pose is; a transformation returned never is not
+        rival = rival @ run.init if np.all(np.isfinite(rival)) else None
     result.ambiguous_transformation = rival
     result.rival_fit = max(result.rival_fit, judged.rival_fit)  # the confirmation's too
     result.pose_evidence, result.confidence = judged.evidence, judged.confidence

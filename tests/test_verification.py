@@ -116,7 +116,7 @@ def test_the_ambiguity_warning_names_the_angle():
         converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
         ambiguity=179.6)
     assert found == ["ambiguous: a pose 180 deg away fits as well (a symmetric object?): "
-                     "result.ambiguity"] and notes == []
+                     "result.ambiguity, result.ambiguous_transformation"] and notes == []
     found, notes = diagnostics.registration_messages(
         converged=True, max_iteration=100, readings={"source": reading}, confidence=0.9,
         ambiguity=179.6, symmetric_rival=True)

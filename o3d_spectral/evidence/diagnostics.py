@@ -118,7 +118,7 @@ def registration_messages(
                      "turned onto itself: both are right (result.ambiguity)")
     elif ambiguity is not None:
         found.append(f"ambiguous: a pose {ambiguity:.0f} deg away fits as well (a symmetric "
-                     "object?): result.ambiguity")
+                     "object?): result.ambiguity, result.ambiguous_transformation")
     for motion in free_motions:
         if motion.symmetric:
             notes.append(f"free: the clouds fit as well {motion.describe()}, a symmetry of "
