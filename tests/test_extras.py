@@ -114,7 +114,7 @@ def test_demo_without_matplotlib_prints_the_numbers_and_a_hint(monkeypatch, caps
     assert "rotation error" in out and f"wrote {tmp_path / 'result.json'}" in out
     assert err.splitlines() == [  # a box: its half turn fits as well, said first
         "o3d-spectral: WARNING: ambiguous: a pose 180 deg away fits as well (a symmetric "
-        "object?): result.ambiguity",
+        "object?): result.ambiguity, result.ambiguous_transformation",
         "o3d-spectral: WARNING: no convergence plot: plotting needs the 'harness' extra "
         "(matplotlib is missing): pip install 'o3d-spectral[harness]'"
     ]
