@@ -210,8 +210,8 @@ def _filled(
     result.num_iterations = len(best.history)
     result.source_reading, result.target_reading = readings["source"], readings["target"]
     result.fit, result.ambiguity = judged.fit, judged.ambiguity
-    rival = judged.rival  # of the moving cloud: the source once posed by init
-    if rival is not None:  # finite as the pose is; a transformation returned never is not
+    rival = judged.rival  # a pose of the moving cloud (the source posed by init)
+    if rival is not None:  # source to target; a non-finite one (never seen) is not returned
         rival = rival @ run.init if np.all(np.isfinite(rival)) else None
     result.ambiguous_transformation = rival
     result.rival_fit = max(result.rival_fit, judged.rival_fit)  # the confirmation's too

@@ -219,8 +219,8 @@ def test_the_ambiguous_pose_is_returned_in_the_callers_frame(call):
     assert np.allclose(other[3], [0.0, 0.0, 0.0, 1.0]) and np.linalg.det(other[:3, :3]) > 0
     between = np.asarray(result.transformation)[:3, :3].T @ other[:3, :3]
     assert np.rad2deg(so3.rotation_angle(between)) == pytest.approx(result.ambiguity, abs=1e-6)
-    fits = [o3d.pipelines.registration.evaluate_registration(box, target, VOXEL, T).fitness
-            for T in (np.asarray(result.transformation), other)]
+    fits = [o3d.pipelines.registration.evaluate_registration(box, target, VOXEL, M).fitness
+            for M in (np.asarray(result.transformation), other)]
     assert fits[1] >= fits[0] - 0.05 and fits[1] > 0.8
 
 

@@ -331,11 +331,10 @@ def confidence_held_out() -> str:
         "",
         f"The library's own calls: {silent['silent_wrong']} of {silent['wrong']} wrong poses "
         f"came back with confidence 0.5 or more and no warning; {silent['right_warned']} of "
-        f"{silent['right']} right poses carried a warning"
-        + (f", {silent['right_ambiguous']} of them that another pose fits as well; in "
-           f"{silent['right_ambiguous_other_wrong']} of those the other pose "
-           "(`result.ambiguous_transformation`) is wrong: the data allow a wrong answer."
-           if "right_ambiguous" in silent else "."),
+        f"{silent['right']} right poses carried a warning, {silent['right_ambiguous']} of "
+        f"them that another pose fits as well; in {silent['right_ambiguous_other_wrong']} of "
+        "those the other pose (`result.ambiguous_transformation`) is wrong: the data allow "
+        "a wrong answer.",
         "",
         provenance("calibrate_confidence_object_summary", "calibrate_confidence_group_summary",
                    "calibrate_confidence_silent") + " Per fold: "
