@@ -135,10 +135,10 @@ class Cramped(CompiledBackend):
     def batch_size(self, shape):
         return 8
 
-    def splat(self, cloud, rotations, grid):
-        if len(rotations) > self.room:
+    def correlate(self, cloud, rotations, batch, fixed):
+        if min(batch, len(rotations)) > self.room:
             raise MemoryError("out of memory")
-        return super().splat(cloud, rotations, grid)
+        return super().correlate(cloud, rotations, batch, fixed)
 
 
 def test_a_batch_that_does_not_fit_is_split_and_gives_the_same_peaks(cloud):

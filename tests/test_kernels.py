@@ -14,3 +14,49 @@ def test_kernels_compile_ahead_from_the_command_line():
                           capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("o3d_spectral kernels ready in ")
+
+
+@pytest.mark.parametrize("culled", [False, True])
+def test_the_compiled_correlation_is_its_steps_to_the_bit(culled):
+    """``correlation_peaks_into`` gives, to the bit, the peaks of its steps run one by one
+    from NumPy (the compiled splat, pocketfft through ``scipy.fft``, the compiled
+    whitening), whatever the batch."""
+    import numpy as np
+    import scipy.fft
+
+    from o3d_spectral.spectra import so3
+    from o3d_spectral.spectra.fft import padded_forward
+    from o3d_spectral.spectra.kernels import (
+        correlation_peaks_into,
+        turned_splat_into,
+        whitened_into,
+    )
+
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-5.0, 5.0, (200, 3))
+    normals = rng.normal(size=(200, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    offset, viewpoint = np.full(3, 7.0), np.array([7.0, 7.0, 40.0])
+    moving, shape = (14, 14, 14), (30, 27, 32)
+    rotations = so3.uniform_rotations(7)
+    flags = (culled, False, 20, True, False)
+    fixed = np.zeros((1, 16, 14, 18), dtype=np.float32)
+    turned_splat_into(fixed, points + 1.5, np.eye(3)[None], offset, normals, viewpoint, *flags)
+    spectrum = padded_forward(fixed, shape)[0].astype(np.complex64)
+    window = rng.uniform(0.5, 1.0, spectrum.shape).astype(np.float32)
+    eps = np.float32(1e-6)
+
+    grids = np.zeros((len(rotations), *moving), dtype=np.float32)
+    turned_splat_into(grids, points, rotations, offset, normals, viewpoint, *flags)
+    spectra = padded_forward(grids, shape).astype(np.complex64)
+    reals = spectra.view(np.float32)
+    whitened_into(reals, spectrum.view(np.float32), window, eps, reals)
+    scipy.fft.ifftn(spectra, axes=(1, 2), overwrite_x=True)
+    flat = scipy.fft.irfft(spectra, n=shape[2], axis=-1).reshape(len(rotations), -1)
+    expected = flat.max(axis=1), np.argmax(flat, axis=1)
+    for batch in (1, 3, 7, 50):
+        values, index = np.zeros(len(rotations)), np.zeros(len(rotations), dtype=np.int64)
+        correlation_peaks_into(values, index, points, rotations, offset, normals, viewpoint,
+                               *flags, moving, shape, spectrum, window, eps, batch)
+        np.testing.assert_array_equal(values, expected[0])
+        np.testing.assert_array_equal(index, expected[1])

@@ -3,14 +3,15 @@
 :class:`~o3d_spectral.correlation.batched.BatchedCorrelation` runs one pipeline over a
 stack of rotations: splat the turned cloud on the moving grid, transform it (zero-padded
 to the FFT shape), whiten its cross-power against the fixed spectrum, transform back,
-read each grid's peak. A :class:`Backend` supplies those five steps on its arrays:
+read each grid's peak. A :class:`Backend` runs that pipeline on its arrays
+(:meth:`Backend.correlate`), and the splat and forward transform alone for the fixed grid:
 
-* :class:`CompiledBackend`: NumPy on the CPU. Compiled loops (numba) turn, cull and
-  splat the points and whiten the spectra in one pass each; pocketfft (``scipy.fft``)
-  transforms in place in a workspace of each thread's, skipping the lines the zero
-  padding leaves empty; the work is done outside the GIL, so that batches on threads use
-  every core. Batches fill about a core's cache (:data:`BATCH_BYTES`): at the voxel's
-  grid of a 0.2 m scan, one grid.
+* :class:`CompiledBackend`: NumPy on the CPU. The whole pipeline over a run of batches is
+  one compiled loop (numba; pocketfft's transforms compiled in through rocket-fft,
+  skipping the lines the zero padding leaves empty): one call per run, the GIL released
+  for all of it, so that runs on threads use every core and no worker waits on another's
+  Python. Batches fill about a core's cache (:data:`BATCH_BYTES`): at the voxel's grid of
+  a 0.2 m scan, one grid.
 * :class:`ArrayBackend`: any library with NumPy's API (NumPy, CuPy) over whole stacks in
   plain array operations: the reference the compiled loops are tested against, and the
   path a GPU library runs.
@@ -24,35 +25,56 @@ holds them to 1e-5).
 from __future__ import annotations
 
 import contextlib
-import threading
 from abc import ABC, abstractmethod
-from collections import OrderedDict
 from collections.abc import Iterator
 from types import ModuleType
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .constants import BATCH_BYTES, GPU_BYTES_PER_CELL, GPU_MEMORY_SHARE, WORKSPACES
+from .constants import BATCH_BYTES, GPU_BYTES_PER_CELL, GPU_MEMORY_SHARE
 from .turned import TurnedCloud
 
-__all__ = ["Backend", "CompiledBackend", "ArrayBackend", "array_backend", "BATCH_BYTES",
+__all__ = ["Backend", "CompiledBackend", "ArrayBackend", "Fixed", "array_backend", "BATCH_BYTES",
            "GPU_MEMORY_SHARE", "GPU_BYTES_PER_CELL"]
 
 
 Array = object  # an array of the backend's library
 
 
+class Fixed(NamedTuple):
+    """What a correlation holds of its fixed grid on the backend.
+
+    Attributes
+    ----------
+    spectrum : array, shape (nx, ny, nz // 2 + 1), complex64
+        The fixed grid's half spectrum on :attr:`shape` (:meth:`Backend.spectrum`).
+    window : array, shape (nx, ny, nz // 2 + 1), float32
+        The Gaussian window on the cross-power spectrum.
+    eps : float
+        Cross-power terms under ``eps`` times the largest are not whitened.
+    moving_shape, shape : tuple of 3 int
+        The moving grid and the FFT grid.
+    """
+
+    spectrum: Array
+    window: Array
+    eps: float
+    moving_shape: tuple[int, int, int]
+    shape: tuple[int, int, int]
+
+
 class Backend(ABC):
-    """The five steps of the batched correlation on one array library.
+    """The batched correlation's pipeline on one array library.
 
     Attributes
     ----------
     xp : module
         The array library (``numpy``, ``cupy``).
     threaded : bool
-        Whether batches run side by side on threads (a CPU library that releases the
-        GIL) rather than one after the other (a GPU, which works on a whole batch).
+        Whether runs of batches go side by side on threads (a CPU library that releases
+        the GIL) rather than one after the other (a GPU, which works on a whole batch).
     """
 
     xp: ModuleType
@@ -78,122 +100,74 @@ class Backend(ABC):
         grid of shape ``grid``: (B, *grid), single precision."""
 
     def spectrum(self, grid: NDArray, shape: tuple[int, int, int]) -> Array:
-        """The half spectrum of one grid zero-padded to ``shape``, on the backend, kept by
-        the caller (:meth:`forward`'s may be a workspace)."""
+        """The half spectrum of one grid zero-padded to ``shape``, on the backend,
+        C-contiguous."""
         return self.forward(self.asarray(grid[None], self.xp.float32), shape)[0].copy()
 
     @abstractmethod
     def forward(self, grids: Array, shape: tuple[int, int, int]) -> Array:
         """Half spectra (B, nx, ny, nz // 2 + 1) of ``grids`` (B, ...) zero-padded from
-        their corner to ``shape``; may be a workspace that the thread's next batch
-        overwrites."""
+        their corner to ``shape``."""
 
     @abstractmethod
-    def whiten(self, spectra: Array, fixed: Array, window: Array, eps: float) -> Array:
-        """``window fixed conj(F) / |fixed conj(F)|`` for each spectrum ``F`` of
-        ``spectra`` (eq. cross_power_spectrum), terms under ``eps`` times the largest
-        (that of the zero frequency, for non-negative grids) not whitened; may overwrite
-        ``spectra``."""
-
-    @abstractmethod
-    def inverse(self, spectra: Array, shape: tuple[int, int, int]) -> Array:
-        """Real grids (B, *shape) of half spectra (B, ...)."""
-
-    @abstractmethod
-    def peaks(self, grids: Array) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        """Each grid's largest value and its flat index (the first of equals), on the
-        host: (B,) and (B,)."""
+    def correlate(
+        self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int, fixed: Fixed
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """The pipeline over ``rotations`` (K, 3, 3), ``batch`` grids at a time: each
+        turned grid's correlation peak against ``fixed`` (unscaled) and its flat index in
+        ``fixed.shape`` (the first of equals), on the host: (K,) and (K,). Each grid's
+        peak is computed alone, whatever the batch; ``MemoryError`` where a batch does
+        not fit."""
 
 
 class CompiledBackend(Backend):
-    """NumPy on the CPU: compiled loops and pocketfft over a batch on the calling thread
-    (see the module docstring).
-
-    Each thread keeps its batch's spectra in a workspace of its own, transformed,
-    whitened and transformed back in place: a batch allocates only the first transform's
-    small output and the correlations. Fresh large arrays for every batch would have the
-    memory allocator return them to the system and fault them in again, batch after
-    batch, which costs a fifth of the time on one thread and serialises two (dragon scans
-    at 3 voxels, 32x36x36 grids: 1.03x on two threads, 1.8x without the churn).
-    """
+    """NumPy on the CPU: the whole pipeline as one compiled loop
+    (:func:`o3d_spectral.spectra.kernels.correlation_peaks_into`) over a run of batches on
+    the calling thread, outside the GIL (see the module docstring)."""
 
     xp = np
     threaded = True
-
-    def __init__(self) -> None:
-        self._local = threading.local()
-
-    def __getstate__(self) -> dict:
-        return {}  # the workspaces stay with their threads (a copy starts without)
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__()
-
-    def _workspace(self, shape: tuple[int, ...], dtype: type) -> NDArray:
-        """This thread's array of ``shape`` and ``dtype``, kept for its next batches (the
-        last few shapes)."""
-        kept = getattr(self._local, "arrays", None)
-        if kept is None:
-            kept = self._local.arrays = OrderedDict()
-        key = (shape, np.dtype(dtype).str)
-        array = kept.pop(key, None)
-        if array is None:
-            array = np.empty(shape, dtype=dtype)
-        kept[key] = array
-        if len(kept) > WORKSPACES:
-            kept.popitem(last=False)
-        return array
 
     def splat(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], grid: tuple[int, int, int]
     ) -> NDArray[np.float32]:
         from ..spectra.kernels import turned_splat_into
 
-        grids = self._workspace((len(rotations), *grid), np.float32)
-        grids.fill(0.0)
-        normals = cloud.normals if cloud.culled else cloud.points
-        viewpoint = cloud.viewpoint if cloud.culled else cloud.offset
+        grids = np.zeros((len(rotations), *grid), dtype=np.float32)
         turned_splat_into(grids, cloud.points, np.ascontiguousarray(rotations, dtype=np.float64),
-                          cloud.offset, normals, viewpoint, cloud.culled, cloud.two_sided,
-                          cloud.min_facing, cloud.weighting == "trilinear",
-                          cloud.weighting == "binary")
+                          cloud.offset, *_culling(cloud))
         return grids
 
     def forward(
         self, grids: NDArray[np.float32], shape: tuple[int, int, int]
     ) -> NDArray[np.complex64]:
-        """:meth:`Backend.forward` into this thread's workspace (overwritten by its next
-        batch), transforming only the lines the grids reach, one axis at a time
-        (:func:`o3d_spectral.spectra.fft.padded_forward`, in place)."""
+        """:meth:`Backend.forward`, transforming only the lines the grids reach
+        (:func:`o3d_spectral.spectra.fft.padded_forward`)."""
         from ..spectra.fft import padded_forward
 
-        spectra = self._workspace((len(grids), shape[0], shape[1], shape[2] // 2 + 1),
-                                  np.complex64)
-        return padded_forward(grids, shape, out=spectra)
+        return padded_forward(grids, shape)
 
-    def whiten(
-        self, spectra: NDArray[np.complex64], fixed: NDArray[np.complex64],
-        window: NDArray[np.float32], eps: float,
-    ) -> NDArray[np.complex64]:
-        from ..spectra.kernels import whitened_into
+    def correlate(
+        self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int, fixed: Fixed
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        from ..spectra.kernels import correlation_peaks_into
 
-        reals = spectra.view(np.float32)
-        whitened_into(reals, fixed.view(np.float32), window, np.float32(eps), reals)
-        return spectra
+        values, index = np.empty(len(rotations)), np.empty(len(rotations), dtype=np.int64)
+        correlation_peaks_into(values, index, cloud.points,
+                               np.ascontiguousarray(rotations, dtype=np.float64), cloud.offset,
+                               *_culling(cloud), fixed.moving_shape, fixed.shape,
+                               fixed.spectrum, fixed.window, np.float32(fixed.eps), batch)
+        return values, index
 
-    def inverse(
-        self, spectra: NDArray[np.complex64], shape: tuple[int, int, int]
-    ) -> NDArray[np.float32]:
-        """:meth:`Backend.inverse`, overwriting ``spectra``."""
-        import scipy.fft
 
-        scipy.fft.ifftn(spectra, axes=(-3, -2), overwrite_x=True)
-        return scipy.fft.irfft(spectra, n=shape[2], axis=-1)
-
-    def peaks(self, grids: NDArray[np.float32]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        flat = grids.reshape(len(grids), -1)
-        index = np.argmax(flat, axis=1)
-        return np.take_along_axis(flat, index[:, None], axis=1)[:, 0].astype(np.float64), index
+def _culling(cloud: TurnedCloud) -> tuple:
+    """The compiled splat's arguments after the offset: normals, viewpoint, culled,
+    two_sided, min_facing, trilinear, binary (the points and offset stand in for the
+    normals and viewpoint of a cloud that is not culled)."""
+    normals = cloud.normals if cloud.culled else cloud.points
+    viewpoint = cloud.viewpoint if cloud.culled else cloud.offset
+    return (normals, viewpoint, cloud.culled, cloud.two_sided, cloud.min_facing,
+            cloud.weighting == "trilinear", cloud.weighting == "binary")
 
 
 class ArrayBackend(Backend):
@@ -284,12 +258,30 @@ class ArrayBackend(Backend):
             out = (out > 0).astype(xp.float32)
         return out.reshape(len(rotations), *grid)
 
+    def correlate(
+        self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int, fixed: Fixed
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """:meth:`Backend.correlate` in plain array operations, a batch at a time: splat,
+        forward transform, whiten, inverse transform, peaks."""
+        values, index = [np.zeros(0)], [np.zeros(0, dtype=np.int64)]
+        for start in range(0, len(rotations), max(1, batch)):
+            grids = self.splat(cloud, rotations[start : start + batch], fixed.moving_shape)
+            whitened = self.whiten(self.forward(grids, fixed.shape), fixed.spectrum,
+                                   fixed.window, fixed.eps)
+            found = self.peaks(self.inverse(whitened, fixed.shape))
+            values.append(found[0])
+            index.append(found[1])
+        return np.concatenate(values), np.concatenate(index)
+
     def forward(self, grids: Array, shape: tuple[int, int, int]) -> Array:
         with self._on_device():
             spectra = self.xp.fft.rfftn(grids, s=shape, axes=(-3, -2, -1))
             return spectra.astype(self.xp.complex64)
 
     def whiten(self, spectra: Array, fixed: Array, window: Array, eps: float) -> Array:
+        """``window fixed conj(F) / |fixed conj(F)|`` for each spectrum ``F`` of
+        ``spectra`` (eq. cross_power_spectrum), terms under ``eps`` times the largest
+        (that of the zero frequency, for non-negative grids) not whitened."""
         xp = self.xp
         with self._on_device():
             cross = fixed * xp.conj(spectra)
@@ -298,11 +290,14 @@ class ArrayBackend(Backend):
             return cross * (window / xp.maximum(xp.abs(cross), floor))
 
     def inverse(self, spectra: Array, shape: tuple[int, int, int]) -> Array:
+        """Real grids (B, *shape) of half spectra (B, ...)."""
         with self._on_device():
             grids = self.xp.fft.irfftn(spectra, s=shape, axes=(-3, -2, -1))
             return grids.astype(self.xp.float32)
 
     def peaks(self, grids: Array) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Each grid's largest value and its flat index (the first of equals), on the
+        host: (B,) and (B,)."""
         xp = self.xp
         with self._on_device():
             flat = grids.reshape(len(grids), -1)

@@ -6,11 +6,12 @@ rotations, each turned grid's peak height and where it lies
 (:meth:`BatchedCorrelation.peaks`): the score by which the global search ranks rotations
 (:func:`o3d_spectral.search.candidates.placed_peaks`).
 
-The rotations are split into batches whose bounds depend only on their number and the
-grid (:meth:`o3d_spectral.correlation.backend.Backend.batch_size`), each computed whole by
-one thread: the same peaks to the bit whatever the number of workers. A batch that does
-not fit in memory is split in halves and computed again (each grid's peak is computed
-alone, whatever the batch); a single grid that does not fit raises ``MemoryError``
+The rotations are transformed in batches sized to the grid
+(:meth:`o3d_spectral.correlation.backend.Backend.batch_size`), the batches shared out to
+the workers in a few runs each (:data:`RUNS_PER_WORKER`), a run one call of the backend.
+Each grid's peak is computed alone, whatever its batch or run: the same peaks to the bit
+whatever the number of workers. Where a batch does not fit in memory the run is computed
+again in batches half as large; a single grid that does not fit raises ``MemoryError``
 naming the grid.
 """
 
@@ -21,10 +22,11 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..common.parallel import thread_map
+from ..common.parallel import resolved_workers, thread_map
 from ..spectra.fft import next_fast_len
 from ..spectra.translation import gaussian_window, peak_scale
-from .backend import Backend, array_backend
+from .backend import Backend, Fixed, array_backend
+from .constants import RUNS_PER_WORKER
 from .turned import TurnedCloud
 
 __all__ = ["BatchedCorrelation", "Peaks"]
@@ -105,13 +107,12 @@ class BatchedCorrelation:
             )
         self.fixed_shape = fixed.shape
         self.backend = array_backend(backend)
-        self.eps = float(eps)
         self.scale = peak_scale(self.shape, sigma, np.float32)
-        xp = self.backend.xp
         try:
-            self.window = self.backend.asarray(gaussian_window(self.shape, sigma, np.float32),
-                                               xp.float32)
-            self.spectrum = self.backend.spectrum(fixed, self.shape)
+            window = self.backend.asarray(gaussian_window(self.shape, sigma, np.float32),
+                                          self.backend.xp.float32)
+            self.fixed = Fixed(self.backend.spectrum(fixed, self.shape), window, float(eps),
+                               self.moving_shape, self.shape)
         except MemoryError as error:
             raise self._too_large() from error
 
@@ -130,7 +131,7 @@ class BatchedCorrelation:
         self, cloud: TurnedCloud, rotations: ArrayLike, workers: int | None = 1
     ) -> Peaks:
         """The peak of the phase correlation of ``cloud`` turned by each of ``rotations``
-        (B, 3, 3) against the fixed grid, the batches on ``workers`` threads where the
+        (B, 3, 3) against the fixed grid, the runs on ``workers`` threads where the
         backend runs them side by side (all cores when None).
 
         Returns
@@ -139,32 +140,30 @@ class BatchedCorrelation:
             Heights (B,) and shifts (B, 3).
         """
         rotations = np.asarray(rotations, dtype=np.float64).reshape(-1, 3, 3)
-        size = self.backend.batch_size(self.shape)
-        batches = [rotations[i : i + size] for i in range(0, len(rotations), size)]
-        found = thread_map(self._batch_peaks(cloud), batches,
-                           workers if self.backend.threaded else 1)
+        batch = self.backend.batch_size(self.shape)
+        workers = resolved_workers(workers) if self.backend.threaded else 1
+        batches = -(-len(rotations) // batch)
+        bounds = batch * np.linspace(0, batches, min(batches, RUNS_PER_WORKER * workers) + 1
+                                     ).astype(int)
+        runs = [rotations[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        found = thread_map(lambda run: self._run_peaks(cloud, run, batch), runs, workers)
         values = np.concatenate([np.zeros(0), *(v for v, _ in found)])
         index = np.concatenate([np.zeros(0, dtype=np.int64), *(i for _, i in found)])
         at = np.stack(np.unravel_index(index, self.shape), axis=-1).reshape(-1, 3)
         shifts = np.where(at >= np.asarray(self.fixed_shape), at - np.asarray(self.shape), at)
         return Peaks(values * self.scale, shifts.astype(np.int64))
 
-    def _batch_peaks(self, cloud: TurnedCloud):
-        """The peaks of one batch of rotations (:meth:`_pipeline`), in halves where a
-        batch does not fit in memory."""
-
-        def batch_peaks(rotations: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-            try:
-                return self._pipeline(cloud, rotations)
-            except MemoryError as error:
-                if len(rotations) == 1:
-                    raise self._too_large() from error
-            half = len(rotations) // 2
-            first, second = batch_peaks(rotations[:half]), batch_peaks(rotations[half:])
-            return (np.concatenate([first[0], second[0]]),
-                    np.concatenate([first[1], second[1]]))
-
-        return batch_peaks
+    def _run_peaks(
+        self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """The peaks of one run of rotations (:meth:`Backend.correlate`), in batches half
+        as large where a batch does not fit in memory."""
+        try:
+            return self.backend.correlate(cloud, rotations, batch, self.fixed)
+        except MemoryError as error:
+            if batch == 1:
+                raise self._too_large() from error
+        return self._run_peaks(cloud, rotations, batch // 2)
 
     def _too_large(self) -> MemoryError:
         """The error of a single FFT grid that does not fit in memory."""
@@ -173,14 +172,3 @@ class BatchedCorrelation:
             f"the batched phase correlation: one FFT grid of {shape} voxels does not fit "
             "in the memory left; use a larger voxel_size or crop the clouds"
         )
-
-    def _pipeline(
-        self, cloud: TurnedCloud, rotations: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        """Splat, transform, whiten, transform back, peak: one batch's values and flat
-        indices."""
-        backend = self.backend
-        grids = backend.splat(cloud, rotations, self.moving_shape)
-        spectra = backend.forward(grids, self.shape)
-        whitened = backend.whiten(spectra, self.spectrum, self.window, self.eps)
-        return backend.peaks(backend.inverse(whitened, self.shape))

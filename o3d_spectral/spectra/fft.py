@@ -133,30 +133,17 @@ class RealFFT3:
 
 
 def padded_forward(
-    blocks: NDArray[np.floating], shape: tuple[int, int, int],
-    out: NDArray[np.complexfloating] | None = None,
+    blocks: NDArray[np.floating], shape: tuple[int, int, int]
 ) -> NDArray[np.complexfloating]:
     """Half spectrum of a real block zero-padded from its corner to ``shape``, or of each
     of a stack of blocks (B, ...): ``rfftn`` of the padded grid, by pocketfft
     (``scipy.fft``) one axis at a time, transforming only the lines the block reaches
     (a block spanning 40% of each side: half the work of the whole grid's transform;
-    equal to the whole grid's to rounding).
-
-    ``out``: an array of the result's shape to transform in place, in which the result is
-    returned (a workspace kept from call to call: no large array is allocated); a new
-    array when omitted.
-    """
+    equal to the whole grid's to rounding)."""
     import scipy.fft
     rows = scipy.fft.rfft(blocks, n=shape[2], axis=-1)
-    if out is None:
-        out = scipy.fft.fft(rows, n=shape[1], axis=-2)
-        return scipy.fft.fft(out, n=shape[0], axis=-3)
-    reached, wide = blocks.shape[-3], blocks.shape[-2]
-    out[..., :reached, :wide, :] = rows
-    out[..., :reached, wide:, :] = 0.0  # the zero padding
-    out[..., reached:, :, :] = 0.0
-    scipy.fft.fft(out[..., :reached, :, :], axis=-2, overwrite_x=True)
-    return scipy.fft.fft(out, axis=-3, overwrite_x=True)
+    out = scipy.fft.fft(rows, n=shape[1], axis=-2)
+    return scipy.fft.fft(out, n=shape[0], axis=-3)
 
 
 def cropped_inverse(

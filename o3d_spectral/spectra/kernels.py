@@ -1,11 +1,13 @@
 """Compiled loops (numba) where numpy would make many passes over large temporaries.
 
 Each kernel is a plain loop over its input, compiled on first use and cached on disk
-(``cache=True``: later processes load it). The functions are pure and single-threaded;
-their callers check and shape the arguments.
+(``cache=True``: later processes load it). The functions are pure and single-threaded,
+and release the GIL (``nogil``): threads run them side by side; their callers check and
+shape the arguments.
 
-Compiling them takes about 2 s of CPU once after installation; loading them from the
-cache, about 0.4 s in each process that uses them. ``python -m o3d_spectral.spectra.kernels``
+Compiling them takes about 6 s of CPU once after installation (most of it the batched
+correlation's, whose transforms rocket-fft compiles in); loading them from the cache,
+about 0.3 s in each process that uses them. ``python -m o3d_spectral.spectra.kernels``
 (:func:`compile_all`) compiles them ahead, so that no registration pays for it.
 """
 
@@ -13,13 +15,14 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+import scipy.fft  # compiled into the batched correlation (rocket-fft)
 from numpy.typing import NDArray
 
 from .constants import HARMONIC_BLOCK
 
 __all__ = [
-    "compile_all", "harmonic_sums", "splat_into", "turned_splat_into", "whitened",
-    "whitened_into", "HARMONIC_BLOCK",
+    "compile_all", "correlation_peaks_into", "harmonic_sums", "splat_into",
+    "turned_splat_into", "whitened", "whitened_into", "HARMONIC_BLOCK",
 ]
 
 
@@ -279,6 +282,71 @@ def whitened(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) 
         o[i, 1] = im * scale
 
 
+@numba.njit(cache=True, nogil=True)
+def correlation_peaks_into(
+    values: NDArray, index: NDArray, points: NDArray, rotations: NDArray, offset: NDArray,
+    normals: NDArray, viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int,
+    trilinear: bool, binary: bool, moving_shape: tuple[int, int, int],
+    shape: tuple[int, int, int], spectrum: NDArray, window: NDArray, eps: float, batch: int,
+) -> None:
+    """The phase-correlation peak of a cloud turned by each of a stack of rotations
+    against one fixed spectrum (eqs. cross_power_spectrum and fourier_shift_solution),
+    ``batch`` grids at a time, the whole stack in one call outside the GIL.
+
+    Each batch is turned and splatted (:func:`turned_splat_into`), transformed zero-padded
+    to ``shape`` along the lines the moving grid reaches
+    (:func:`o3d_spectral.spectra.fft.padded_forward`'s order of axes), whitened against
+    ``spectrum`` (:func:`whitened_into`), transformed back, and each grid's largest value
+    and its flat index (the first of equals) read: the same values, to the bit, as those
+    steps run one by one from NumPy. The transforms are pocketfft's, compiled in through
+    rocket-fft's ``scipy.fft``.
+
+    Parameters
+    ----------
+    values : ndarray, shape (K,), float64
+    index : ndarray, shape (K,), int64
+        Filled: each rotation's peak (unscaled) and its flat index in ``shape``.
+    points, rotations, offset, normals, viewpoint, culled, two_sided, min_facing, \
+trilinear, binary
+        As for :func:`turned_splat_into`; ``rotations`` (K, 3, 3).
+    moving_shape, shape : tuple of 3 int
+        The moving grid and the FFT grid.
+    spectrum : ndarray, shape (nx, ny, nz // 2 + 1), complex64
+        The fixed grid's half spectrum on ``shape``.
+    window : ndarray, shape (nx, ny, nz // 2 + 1), float32
+    eps : float32
+        As for :func:`whitened`.
+    batch : int
+        Grids transformed together (the memory one call takes grows with it).
+    """
+    mx, my = moving_shape[0], moving_shape[1]
+    nx, ny, nz = shape
+    batch = max(1, min(batch, rotations.shape[0]))
+    grids = np.empty((batch, moving_shape[0], moving_shape[1], moving_shape[2]), np.float32)
+    spectra = np.empty((batch, nx, ny, nz // 2 + 1), np.complex64)
+    correlations = np.empty((batch, nx, ny, nz), np.float32)
+    fixed = spectrum.view(np.float32)
+    for start in range(0, rotations.shape[0], batch):
+        count = min(batch, rotations.shape[0] - start)
+        block, out = grids[:count], spectra[:count]
+        block[:] = 0.0
+        turned_splat_into(block, points, rotations[start:start + count], offset, normals,
+                          viewpoint, culled, two_sided, min_facing, trilinear, binary)
+        np.fft.rfft(block, n=nz, axis=-1, out=out[:, :mx, :my, :])
+        out[:, :mx, my:, :] = 0.0  # the zero padding
+        out[:, mx:, :, :] = 0.0
+        scipy.fft.fft(out[:, :mx], axis=2, overwrite_x=True)  # in place, as below
+        scipy.fft.fft(out, axis=1, overwrite_x=True)
+        reals = out.view(np.float32)
+        whitened_into(reals, fixed, window, eps, reals)
+        scipy.fft.ifftn(out, axes=(1, 2), overwrite_x=True)
+        grid = np.fft.irfft(out, n=nz, axis=-1, out=correlations[:count])
+        for b in range(count):
+            flat = grid[b].ravel()
+            at = np.argmax(flat)
+            values[start + b], index[start + b] = flat[at], at
+
+
 def compile_all() -> None:
     """Compile (or load from the cache) every kernel for the argument types the package
     passes: C-contiguous float64 arrays, each combination of the flags."""
@@ -296,6 +364,10 @@ def compile_all() -> None:
                                   0, trilinear, binary)
     spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
     whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
+    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64), u, eye[None], origin,
+                           normals, origin, False, False, 0, True, False, (2, 2, 2), (2, 2, 2),
+                           np.ones((2, 2, 2), dtype=np.complex64),
+                           np.ones((2, 2, 2), dtype=np.float32), np.float32(1e-6), 1)
 
 
 if __name__ == "__main__":
