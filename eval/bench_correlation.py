@@ -15,10 +15,10 @@ Reports each, the gain of the workers over one, and the share of the one-worker 
 did not run in parallel as that gain implies (Amdahl's law: ``(W / gain - 1) / (W - 1)``
 for ``W`` workers). The process's CPU time tells the two causes apart: *busy* is the share
 of the ``W`` workers' wall time they ran (CPU time over ``W`` times the wall time; what is
-left they waited: on the GIL, or for the last batch), and *CPU per rotation* the CPU time
-the workers spent over what one worker spent on the same work (over 1: each core did the
-same work slower, sharing the memory and caches). The gain is ``W`` times the busy share
-with ``W`` workers over that with one, over that ratio.
+left they waited: for the last run, or on the steps between correlations), and *CPU per
+rotation* the CPU time the workers spent over what one worker spent on the same work (over
+1: each core did the same work slower, sharing the memory and caches). The gain is ``W``
+times the busy share with ``W`` workers over that with one, over that ratio.
 
 Usage: python eval/bench_correlation.py --suites SUITES --out out/bench_correlation
        [--groups dragon_96 turntable_90 ...] [--count 512] [--workers 2]

@@ -1001,9 +1001,9 @@ def dense_cores() -> str:
         provenance("dense_cores") + " Medians of runs on one worker and on two in turn; "
         "not in parallel: the share of the one-worker time that the gain implies ran "
         "alone (Amdahl's law); busy: the process's CPU time over the workers' wall time "
-        "(the rest they waited, on the GIL or for the last batch); CPU per rotation: the "
-        "CPU time two workers spent over what one spent on the same work (over 1x: each "
-        "core did it slower, the two sharing memory and caches).",
+        "(the rest they waited, for the last run or on the search's own steps); CPU per "
+        "rotation: the CPU time two workers spent over what one spent on the same work "
+        "(over 1x: each core did it slower, the two sharing memory and caches).",
     ])
 
 
