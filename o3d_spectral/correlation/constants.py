@@ -16,6 +16,10 @@ BATCH_BYTES = 2**20
 #: its intermediates (3 x 4) and the correlations (4), with CuPy's FFT work area; the
 #: rest stays free for the plans and the other shape's batches.
 GPU_MEMORY_SHARE, GPU_BYTES_PER_CELL = 0.25, 32
+#: Workspace sizes a thread keeps (:class:`CompiledBackend`): one search correlates on
+#: two or three grids (the dense search's coarse and fine ones, the placements'), each at
+#: one batch size.
+WORKSPACES = 4
 
 # -- correlation.batched: the runs the batches are shared out in ---------------------------
 # Calibrated on: the dense search's coarse grids of a turntable pair and a dragon pair

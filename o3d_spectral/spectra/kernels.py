@@ -286,48 +286,44 @@ def whitened(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) 
 def correlation_peaks_into(
     values: NDArray, index: NDArray, points: NDArray, rotations: NDArray, offset: NDArray,
     normals: NDArray, viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int,
-    trilinear: bool, binary: bool, moving_shape: tuple[int, int, int],
-    shape: tuple[int, int, int], spectrum: NDArray, window: NDArray, eps: float, batch: int,
+    trilinear: bool, binary: bool, spectrum: NDArray, window: NDArray, eps: float,
+    grids: NDArray, spectra: NDArray, correlations: NDArray,
 ) -> None:
     """The phase-correlation peak of a cloud turned by each of a stack of rotations
-    against one fixed spectrum (eqs. cross_power_spectrum and fourier_shift_solution),
-    ``batch`` grids at a time, the whole stack in one call outside the GIL.
+    against one fixed spectrum (eqs. cross_power_spectrum and fourier_shift_solution), a
+    batch of grids at a time, the whole stack in one call outside the GIL.
 
     Each batch is turned and splatted (:func:`turned_splat_into`), transformed zero-padded
-    to ``shape`` along the lines the moving grid reaches
+    to the FFT grid along the lines the moving grid reaches
     (:func:`o3d_spectral.spectra.fft.padded_forward`'s order of axes), whitened against
     ``spectrum`` (:func:`whitened_into`), transformed back, and each grid's largest value
     and its flat index (the first of equals) read: the same values, to the bit, as those
     steps run one by one from NumPy. The transforms are pocketfft's, compiled in through
-    rocket-fft's ``scipy.fft``.
+    rocket-fft, in place in the workspaces: nothing is allocated.
 
     Parameters
     ----------
     values : ndarray, shape (K,), float64
     index : ndarray, shape (K,), int64
-        Filled: each rotation's peak (unscaled) and its flat index in ``shape``.
+        Filled: each rotation's peak (unscaled) and its flat index in the FFT grid.
     points, rotations, offset, normals, viewpoint, culled, two_sided, min_facing, \
 trilinear, binary
         As for :func:`turned_splat_into`; ``rotations`` (K, 3, 3).
-    moving_shape, shape : tuple of 3 int
-        The moving grid and the FFT grid.
     spectrum : ndarray, shape (nx, ny, nz // 2 + 1), complex64
-        The fixed grid's half spectrum on ``shape``.
+        The fixed grid's half spectrum on the FFT grid (nx, ny, nz).
     window : ndarray, shape (nx, ny, nz // 2 + 1), float32
     eps : float32
         As for :func:`whitened`.
-    batch : int
-        Grids transformed together (the memory one call takes grows with it).
+    grids : ndarray, shape (B, mx, my, mz), float32
+    spectra : ndarray, shape (B, nx, ny, nz // 2 + 1), complex64
+    correlations : ndarray, shape (B, nx, ny, nz), float32
+        Workspaces, overwritten: the batch's moving grids, their spectra and their
+        correlations; ``B``, the grids transformed together.
     """
-    mx, my = moving_shape[0], moving_shape[1]
-    nx, ny, nz = shape
-    batch = max(1, min(batch, rotations.shape[0]))
-    grids = np.empty((batch, moving_shape[0], moving_shape[1], moving_shape[2]), np.float32)
-    spectra = np.empty((batch, nx, ny, nz // 2 + 1), np.complex64)
-    correlations = np.empty((batch, nx, ny, nz), np.float32)
+    mx, my, nz = grids.shape[1], grids.shape[2], correlations.shape[3]
     fixed = spectrum.view(np.float32)
-    for start in range(0, rotations.shape[0], batch):
-        count = min(batch, rotations.shape[0] - start)
+    for start in range(0, rotations.shape[0], grids.shape[0]):
+        count = min(grids.shape[0], rotations.shape[0] - start)
         block, out = grids[:count], spectra[:count]
         block[:] = 0.0
         turned_splat_into(block, points, rotations[start:start + count], offset, normals,
@@ -365,9 +361,11 @@ def compile_all() -> None:
     spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
     whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
     correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64), u, eye[None], origin,
-                           normals, origin, False, False, 0, True, False, (2, 2, 2), (2, 2, 2),
+                           normals, origin, False, False, 0, True, False,
                            np.ones((2, 2, 2), dtype=np.complex64),
-                           np.ones((2, 2, 2), dtype=np.float32), np.float32(1e-6), 1)
+                           np.ones((2, 2, 2), dtype=np.float32), np.float32(1e-6),
+                           cells, np.ones((1, 2, 2, 2), dtype=np.complex64),
+                           np.ones((1, 2, 2, 2), dtype=np.float32))
 
 
 if __name__ == "__main__":
