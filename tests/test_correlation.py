@@ -58,11 +58,13 @@ def test_heights_and_shifts_are_those_of_one_correlation_each(cloud, rng, weight
     rotations = np.stack([truth, *so3.uniform_rotations(7)])
     correlation = BatchedCorrelation(fixed, MOVING)
     peaks = correlation.peaks(moving, rotations)
-    for R, height, shift in zip(rotations, *peaks, strict=True):
+    for R, height, shift, fraction in zip(rotations, peaks.heights, peaks.shifts,
+                                          peaks.fractions, strict=True):
         one = reference_peak(BatchedCorrelation.grid_of(moving, MOVING, R), fixed,
                              correlation.shape)
         assert height == pytest.approx(one.peak, rel=1e-4)
         assert np.abs(shift - one.shift).max() <= 0.5  # the integer peak of its sub-voxel one
+        np.testing.assert_allclose(shift + fraction, one.shift, atol=1e-3)  # single precision
     assert np.argmax(peaks.heights) == 0  # the truth peaks highest ...
     assert peaks.heights[0] > 0.6
     np.testing.assert_array_equal(peaks.shifts[0], [1, 1, 3])  # ... where the pivot moved
@@ -95,10 +97,32 @@ def test_both_backends_cull_alike_and_agree(cloud, two_sided):
         np.testing.assert_allclose(BatchedCorrelation.grid_of(culled, MOVING, R),
                                    splat(u[facing], box), atol=1e-5)
     fixed = scene(cloud, rotations[3], [10.0, 9.0, 11.0])
-    compiled = BatchedCorrelation(fixed, MOVING).peaks(culled, rotations)
-    array = BatchedCorrelation(fixed, MOVING, backend=ArrayBackend()).peaks(culled, rotations)
-    np.testing.assert_allclose(array.heights, compiled.heights, rtol=1e-4)
-    np.testing.assert_array_equal(array.shifts, compiled.shifts)
+    overlap = fixed[2:18, 1:17, 3:19]
+    for searched in (None, (6, 4, 7)):
+        compiled, array = (BatchedCorrelation(fixed, MOVING, backend=backend, searched=searched,
+                                              overlap=overlap).peaks(culled, rotations)
+                           for backend in (CompiledBackend(), ArrayBackend()))
+        np.testing.assert_allclose(array.heights, compiled.heights, rtol=1e-4)
+        np.testing.assert_array_equal(array.shifts, compiled.shifts)
+        np.testing.assert_allclose(array.fractions, compiled.fractions, atol=1e-3)
+        np.testing.assert_allclose(array.overlaps, compiled.overlaps, rtol=1e-6)
+        if searched:
+            assert np.all((compiled.shifts >= 0) & (compiled.shifts < searched))
+
+
+def test_the_overlap_is_the_unit_moving_grids_inner_product_before_any_shift(cloud):
+    points, _ = cloud
+    fixed = scene(cloud, np.eye(3), [9.0, 9.0, 9.0])
+    moving = TurnedCloud(points, [8.0, 8.0, 8.0])
+    overlap = np.random.default_rng(2).uniform(size=MOVING)
+    rotations = so3.uniform_rotations(5)
+    peaks = BatchedCorrelation(fixed, MOVING, overlap=overlap).peaks(moving, rotations)
+    for R, found in zip(rotations, peaks.overlaps, strict=True):
+        grid = BatchedCorrelation.grid_of(moving, MOVING, R).astype(np.float64)
+        assert found == pytest.approx(np.sum(grid * overlap) / np.linalg.norm(grid), rel=1e-12)
+    unasked = BatchedCorrelation(fixed, MOVING).peaks(moving, rotations)
+    np.testing.assert_array_equal(unasked.overlaps, 0.0)
+    np.testing.assert_array_equal(unasked.heights, peaks.heights)
 
 
 def test_too_few_facing_points_splat_them_all(cloud):
@@ -121,8 +145,8 @@ def test_the_same_peaks_whatever_the_workers(cloud):
     one = correlation.peaks(moving, rotations, workers=1)
     for workers in (2, 3, None):
         other = correlation.peaks(moving, rotations, workers=workers)
-        np.testing.assert_array_equal(other.heights, one.heights)
-        np.testing.assert_array_equal(other.shifts, one.shifts)
+        for mine, theirs in zip(other, one, strict=True):
+            np.testing.assert_array_equal(mine, theirs)
 
 
 class Cramped(CompiledBackend):
@@ -148,8 +172,8 @@ def test_a_batch_that_does_not_fit_is_split_and_gives_the_same_peaks(cloud):
     rotations = so3.uniform_rotations(20)
     roomy = BatchedCorrelation(fixed, MOVING).peaks(moving, rotations)
     cramped = BatchedCorrelation(fixed, MOVING, backend=Cramped(3)).peaks(moving, rotations)
-    np.testing.assert_array_equal(cramped.heights, roomy.heights)
-    np.testing.assert_array_equal(cramped.shifts, roomy.shifts)
+    for mine, theirs in zip(cramped, roomy, strict=True):
+        np.testing.assert_array_equal(mine, theirs)
     with pytest.raises(MemoryError, match=r"one FFT grid of \d+x\d+x\d+ voxels.*voxel_size"):
         BatchedCorrelation(fixed, MOVING, backend=Cramped(0)).peaks(moving, rotations)
 
@@ -160,6 +184,10 @@ def test_bad_arguments_are_named(cloud):
         BatchedCorrelation(np.zeros(FIXED), MOVING, shape=(16, 16, 16))
     with pytest.raises(ValueError, match="fixed must be a 3D grid"):
         BatchedCorrelation(np.zeros((4, 4)), MOVING)
+    with pytest.raises(ValueError, match=r"searched \(0, 4, 4\) must lie within"):
+        BatchedCorrelation(np.zeros(FIXED), MOVING, searched=(0, 4, 4))
+    with pytest.raises(ValueError, match=r"overlap must be a grid of the moving shape"):
+        BatchedCorrelation(np.zeros(FIXED), MOVING, overlap=np.zeros((3, 3, 3)))
     with pytest.raises(ValueError, match="weighting must be one of"):
         TurnedCloud(points, np.zeros(3), weighting="nearest")
     with pytest.raises(ValueError, match="normals must have shape"):

@@ -38,8 +38,9 @@ def fake_cupy(devices: int = 1, free: int = 64 * 2**20, fail_above: int | None =
     ``fail_above`` grids; and its ``cupyx`` (``scatter_add``)."""
     cupy = types.ModuleType("cupy")
     for name in ("asarray", "einsum", "ones", "zeros", "floor", "arange", "all", "add",
-                 "sum", "abs", "conj", "maximum", "argmax", "take_along_axis", "int64",
-                 "float32", "float64", "complex64"):
+                 "sum", "abs", "conj", "maximum", "argmax", "int64",
+                 "float32", "float64", "complex64", "empty", "stack", "unravel_index",
+                 "sqrt", "where"):
         setattr(cupy, name, getattr(np, name))
     cupy.asnumpy = np.asarray
     entered = []

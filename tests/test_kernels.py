@@ -17,10 +17,12 @@ def test_kernels_compile_ahead_from_the_command_line():
 
 
 @pytest.mark.parametrize("culled", [False, True])
-def test_the_compiled_correlation_is_its_steps_to_the_bit(culled):
+@pytest.mark.parametrize("cropped", [False, True])
+def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
     """``correlation_peaks_into`` gives, to the bit, the peaks of its steps run one by one
     from NumPy (the compiled splat, pocketfft through ``scipy.fft``, the compiled
-    whitening), whatever the batch."""
+    whitening), whatever the batch: each peak within the searched block, its neighbours
+    (wrapping around), and each moving grid's overlap with a fixed one in double precision."""
     import numpy as np
     import scipy.fft
 
@@ -38,6 +40,7 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled):
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     offset, viewpoint = np.full(3, 7.0), np.array([7.0, 7.0, 40.0])
     moving, shape = (14, 14, 14), (30, 27, 32)
+    searched = (9, 20, 4) if cropped else shape
     rotations = so3.uniform_rotations(7)
     flags = (culled, False, 20, True, False)
     fixed = np.zeros((1, 16, 14, 18), dtype=np.float32)
@@ -45,6 +48,7 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled):
     spectrum = padded_forward(fixed, shape)[0].astype(np.complex64)
     window = rng.uniform(0.5, 1.0, spectrum.shape).astype(np.float32)
     eps = np.float32(1e-6)
+    overlap = rng.uniform(0.0, 1.0, moving)
 
     grids = np.zeros((len(rotations), *moving), dtype=np.float32)
     turned_splat_into(grids, points, rotations, offset, normals, viewpoint, *flags)
@@ -52,14 +56,28 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled):
     reals = spectra.view(np.float32)
     whitened_into(reals, spectrum.view(np.float32), window, eps, reals)
     scipy.fft.ifftn(spectra, axes=(1, 2), overwrite_x=True)
-    flat = scipy.fft.irfft(spectra, n=shape[2], axis=-1).reshape(len(rotations), -1)
-    expected = flat.max(axis=1), np.argmax(flat, axis=1)
+    correlations = scipy.fft.irfft(spectra, n=shape[2], axis=-1)
+    block = correlations[:, : searched[0], : searched[1], : searched[2]]
+    at = np.stack(np.unravel_index(np.argmax(block.reshape(len(rotations), -1), axis=1),
+                                   block.shape[1:]), axis=-1)
+    expected_values = block.reshape(len(rotations), -1).max(axis=1)
+    expected_index = np.ravel_multi_index(at.T, shape)
+    expected_neighbours = np.stack([np.stack(
+        [np.roll(correlations, -step, axis=1 + axis)[(np.arange(len(rotations)), *at.T)]
+         for step in (-1, 1)], axis=-1) for axis in range(3)], axis=1)
+    flat = grids.reshape(len(rotations), -1).astype(np.float64)
+    expected_overlaps = flat @ overlap.ravel() / np.linalg.norm(flat, axis=1)
     for batch in (1, 3, 7, 50):  # workspaces left dirty by the batch before
         workspaces = (np.full((batch, *moving), 9.0, dtype=np.float32),
                       np.full((batch, *spectrum.shape), 9.0, dtype=np.complex64),
                       np.full((batch, *shape), 9.0, dtype=np.float32))
         values, index = np.zeros(len(rotations)), np.zeros(len(rotations), dtype=np.int64)
-        correlation_peaks_into(values, index, points, rotations, offset, normals, viewpoint,
-                               *flags, spectrum, window, eps, *workspaces)
-        np.testing.assert_array_equal(values, expected[0])
-        np.testing.assert_array_equal(index, expected[1])
+        neighbours = np.zeros((len(rotations), 3, 2), dtype=np.float32)
+        overlaps = np.zeros(len(rotations))
+        correlation_peaks_into(values, index, neighbours, overlaps, points, rotations, offset,
+                               normals, viewpoint, *flags, spectrum, window, eps,
+                               np.array(searched), overlap, *workspaces)
+        np.testing.assert_array_equal(values, expected_values)
+        np.testing.assert_array_equal(index, expected_index)
+        np.testing.assert_array_equal(neighbours, expected_neighbours)
+        np.testing.assert_allclose(overlaps, expected_overlaps, rtol=1e-12)

@@ -12,7 +12,7 @@ from o3d_spectral.harness.errors import (
     translation_error,
 )
 from o3d_spectral.io.cloud import as_arrays
-from o3d_spectral.search import GlobalSearch, Kind, situation
+from o3d_spectral.search import GlobalSearch, Kind, placement, situation
 from o3d_spectral.search.candidates import egi_candidates
 from o3d_spectral.search.placement import Placements, place
 from o3d_spectral.spectra import so3
@@ -346,15 +346,15 @@ def test_a_scene_search_places_each_rotation_once_per_searched_block(monkeypatch
     stepper = o3d_spectral.SpectralStepper(instance.target, VOXEL)
     moving = stepper.moving(instance.source)
     placed = []
-    locate = o3d_spectral.SpectralStepper.locate
+    placed_in = placement.placed_in
 
-    def counted(self, moving, rotation, *, around=None, factor=1.0):
-        grid = self.grid.coarsened(factor)
-        block = grid.search_box(moving.radius, around)
-        placed.append((rotation.tobytes(), None if block is grid.box else tuple(block.offset)))
-        return locate(self, moving, rotation, around=around, factor=factor)
+    def counted(stepper, moving, rotations, factor, block, workers):
+        grid = stepper.grid.coarsened(factor)
+        placed.extend((R.tobytes(), None if block is grid.box else tuple(block.offset))
+                      for R in rotations)
+        return placed_in(stepper, moving, rotations, factor, block, workers)
 
-    monkeypatch.setattr(o3d_spectral.SpectralStepper, "locate", counted)
+    monkeypatch.setattr(placement, "placed_in", counted)
     finder = GlobalSearch(stepper, moving, as_arrays(instance.target, "target"),
                           o3d_spectral.GlobalSearchOption(),
                           situation(stepper, moving))

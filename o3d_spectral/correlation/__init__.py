@@ -8,8 +8,9 @@ FFT and a peak. This layer runs that pipeline over stacks of rotations on an arr
 backend:
 
 * :mod:`~o3d_spectral.correlation.backend`: what the pipeline asks of an array library,
-  answered on the CPU by one compiled loop outside the GIL (every core), or by any library
-  with NumPy's API (NumPy itself, CuPy on a GPU) over whole stacks;
+  answered on the CPU by one compiled loop outside the GIL (every core);
+* :mod:`~o3d_spectral.correlation.numpy_api`: the same answered by any library with
+  NumPy's API (NumPy itself, CuPy on a GPU) over whole stacks;
 * :mod:`~o3d_spectral.correlation.batched`: :class:`BatchedCorrelation`, the fixed
   spectrum held on the backend and the peaks of a stack of rotations, and
   :class:`TurnedCloud`, the moving cloud as the pipeline turns it;
@@ -20,11 +21,12 @@ Free of Open3D: it runs where only NumPy (and CuPy) are installed. Imports only 
 modules, :mod:`o3d_spectral.spectra` and the package's helpers (``tests/test_layers.py``).
 """
 
-from .backend import ArrayBackend, Backend, CompiledBackend, Fixed, array_backend
+from .backend import Backend, CompiledBackend, Fixed, Found, array_backend
 from .batched import BatchedCorrelation, Peaks, TurnedCloud
 from .device import Device, device_backend, parse_device
+from .numpy_api import ArrayBackend
 
 __all__ = [
-    "ArrayBackend", "Backend", "BatchedCorrelation", "CompiledBackend", "Device", "Fixed", "Peaks",
-    "TurnedCloud", "array_backend", "device_backend", "parse_device",
+    "ArrayBackend", "Backend", "BatchedCorrelation", "CompiledBackend", "Device", "Fixed",
+    "Found", "Peaks", "TurnedCloud", "array_backend", "device_backend", "parse_device",
 ]

@@ -24,8 +24,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..common.parallel import resolved_workers, thread_map
 from ..spectra.fft import next_fast_len
-from ..spectra.translation import gaussian_window, peak_scale
-from .backend import Backend, Fixed, array_backend
+from ..spectra.translation import gaussian_window, peak_scale, subvoxel_offsets
+from .backend import Backend, Fixed, Found, array_backend
 from .constants import RUNS_PER_WORKER
 from .turned import TurnedCloud
 
@@ -43,10 +43,20 @@ class Peaks(NamedTuple):
         Where each peak lies: the shift, whole voxels, that moves each turned moving grid
         onto the fixed grid, both grids' corners at the origin (``fixed(x) ~
         moving(x - shift)``).
+    fractions : ndarray, shape (B, 3)
+        The sub-voxel part of each shift, in [-0.5, 0.5] voxels: the summit of the
+        Gaussian through the peak and its neighbours along each axis
+        (:func:`o3d_spectral.spectra.translation.subvoxel_offsets`); none along an axis
+        where a neighbour lies outside the searched block.
+    overlaps : ndarray, shape (B,)
+        The unit-norm turned moving grid's inner product with the correlation's
+        ``overlap`` grid before any shift (0 throughout where it has none).
     """
 
     heights: NDArray[np.float64]
     shifts: NDArray[np.int64]
+    fractions: NDArray[np.float64]
+    overlaps: NDArray[np.float64]
 
 
 class BatchedCorrelation:
@@ -70,6 +80,17 @@ class BatchedCorrelation:
     backend : Backend, optional
         The array library; NumPy on the CPU when omitted
         (:func:`o3d_spectral.correlation.backend.array_backend`).
+    searched : tuple of 3 int, optional
+        Seek the peak only at indices below these per axis, each read as a positive
+        shift: for a fixed block filling the FFT grid, ``shape - moving_shape + 1``, the
+        shifts that keep the moving grid inside it. Every shift of the padded grids when
+        omitted.
+    overlap : array_like, shape ``moving_shape``, optional
+        A grid each turned moving grid is compared with before any shift
+        (:attr:`Peaks.overlaps`): the fixed grid on the moving grid's cells.
+    spectrum : array_like, shape (nx, ny, nz // 2 + 1), optional
+        The fixed grid's half spectrum on ``shape`` where it is already known (shared
+        with other correlations against it); computed from ``fixed`` when omitted.
 
     Examples
     --------
@@ -89,7 +110,8 @@ class BatchedCorrelation:
     def __init__(
         self, fixed: ArrayLike, moving_shape: tuple[int, int, int], *,
         shape: tuple[int, int, int] | None = None, sigma: float = 1.0, eps: float = 1e-6,
-        backend: Backend | None = None,
+        backend: Backend | None = None, searched: tuple[int, int, int] | None = None,
+        overlap: ArrayLike | None = None, spectrum: ArrayLike | None = None,
     ) -> None:
         fixed = np.asarray(fixed, dtype=np.float32)
         if fixed.ndim != 3:
@@ -99,8 +121,13 @@ class BatchedCorrelation:
             shape = tuple(next_fast_len(a + b) for a, b in zip(fixed.shape, self.moving_shape,
                                                                 strict=True))
         self.shape = tuple(int(n) for n in shape)
-        if any(n < a + b - 1 for n, a, b in zip(self.shape, fixed.shape, self.moving_shape,
-                                                strict=True)):
+        self.searched = None if searched is None else tuple(int(n) for n in searched)
+        if self.searched is not None:
+            if not all(0 < s <= n for s, n in zip(self.searched, self.shape, strict=True)):
+                raise ValueError(f"searched {self.searched} must lie within the FFT grid "
+                                 f"{self.shape}, at least 1 per axis")
+        elif any(n < a + b - 1 for n, a, b in zip(self.shape, fixed.shape, self.moving_shape,
+                                                  strict=True)):
             raise ValueError(
                 f"shape {self.shape} is too small for a fixed grid of {fixed.shape} and a "
                 f"moving grid of {self.moving_shape}: shifts would wrap around"
@@ -111,10 +138,28 @@ class BatchedCorrelation:
         try:
             window = self.backend.asarray(gaussian_window(self.shape, sigma, np.float32),
                                           self.backend.xp.float32)
-            self.fixed = Fixed(self.backend.spectrum(fixed, self.shape), window, float(eps),
-                               self.moving_shape, self.shape)
+            compared = np.zeros((0, 0, 0)) if overlap is None else np.asarray(overlap,
+                                                                                dtype=np.float64)
+            if overlap is not None and compared.shape != self.moving_shape:
+                raise ValueError(f"overlap must be a grid of the moving shape "
+                                 f"{self.moving_shape}, got shape {compared.shape}")
+            self.fixed = Fixed(self._spectrum(fixed, spectrum), window, float(eps),
+                               self.moving_shape, self.shape, self.searched or self.shape,
+                               self.backend.asarray(compared, self.backend.xp.float64))
         except MemoryError as error:
             raise self._too_large() from error
+
+    def _spectrum(self, fixed: NDArray[np.float32], spectrum: ArrayLike | None) -> object:
+        """The fixed grid's half spectrum on the backend: ``spectrum`` where given, of
+        the FFT grid's half spectrum shape."""
+        if spectrum is None:
+            return self.backend.spectrum(fixed, self.shape)
+        expected = (*self.shape[:2], self.shape[2] // 2 + 1)
+        if np.shape(spectrum) != expected:
+            raise ValueError(f"spectrum must be the half spectrum of the FFT grid {self.shape},"
+                             f" shape {expected}, got {np.shape(spectrum)}")
+        own = np.array(spectrum, dtype=np.complex64)  # writeable and C-contiguous, as
+        return self.backend.asarray(own, self.backend.xp.complex64)  # the loop reads it
 
     @staticmethod
     def grid_of(
@@ -137,9 +182,12 @@ class BatchedCorrelation:
         Returns
         -------
         Peaks
-            Heights (B,) and shifts (B, 3).
+            Heights (B,), shifts (B, 3), their sub-voxel parts (B, 3) and overlaps (B,).
         """
         rotations = np.asarray(rotations, dtype=np.float64).reshape(-1, 3, 3)
+        if not len(rotations):
+            return Peaks(np.zeros(0), np.zeros((0, 3), dtype=np.int64), np.zeros((0, 3)),
+                         np.zeros(0))
         batch = self.backend.batch_size(self.shape)
         workers = resolved_workers(workers) if self.backend.threaded else 1
         batches = -(-len(rotations) // batch)
@@ -147,15 +195,22 @@ class BatchedCorrelation:
                                      ).astype(int)
         runs = [rotations[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         found = thread_map(lambda run: self._run_peaks(cloud, run, batch), runs, workers)
-        values = np.concatenate([np.zeros(0), *(v for v, _ in found)])
-        index = np.concatenate([np.zeros(0, dtype=np.int64), *(i for _, i in found)])
+        values, index, neighbours, overlaps = (np.concatenate(column) for column in
+                                               zip(*found, strict=True))
         at = np.stack(np.unravel_index(index, self.shape), axis=-1).reshape(-1, 3)
-        shifts = np.where(at >= np.asarray(self.fixed_shape), at - np.asarray(self.shape), at)
-        return Peaks(values * self.scale, shifts.astype(np.int64))
+        peak = values.astype(np.float32)  # the fit in the correlation's precision
+        fractions = np.stack([subvoxel_offsets(neighbours[:, a, 0], peak, neighbours[:, a, 1])
+                              for a in range(3)], axis=-1).reshape(-1, 3)
+        if self.searched is not None:  # no fit across the searched block's edge
+            fractions[(at == 0) | (at >= np.asarray(self.searched) - 1)] = 0.0
+            shifts = at
+        else:
+            shifts = np.where(at >= np.asarray(self.fixed_shape), at - np.asarray(self.shape), at)
+        return Peaks(values * self.scale, shifts.astype(np.int64), fractions, overlaps)
 
     def _run_peaks(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int
-    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    ) -> Found:
         """The peaks of one run of rotations (:meth:`Backend.correlate`), in batches half
         as large where a batch does not fit in memory."""
         try:

@@ -11,15 +11,23 @@
 #: the time a rotation takes is the same to 5% on one worker and on two (27x30x36 grids:
 #: 0.18 ms in batches of 2, 4 or 8); past it a batch is slower (0.21 ms in batches of 35).
 BATCH_BYTES = 2**20
+#: Workspace sizes a thread keeps (:class:`CompiledBackend`): one search correlates on
+#: two or three grids (the dense search's coarse and fine ones, the placements'), each at
+#: one batch size.
+WORKSPACES = 4
+
+# -- correlation.numpy_api: the batches on a GPU -------------------------------------------
+# Calibrated on: the bytes CuPy's pipeline holds per cell of the FFT grid, counted array by
+#   array (no GPU lent to measure them)
+# Measured again by: python eval/device_check.py run --out OUT (on a machine with a GPU)
+# Trades: larger batches, fewer launches, until the device runs out of memory (then the
+#   batch is halved)
+
 #: Share of a GPU's free memory one batch may take, and the bytes it takes a cell of the
 #: FFT grid: the moving grids (4), their half spectra (4), the whitened cross-power and
 #: its intermediates (3 x 4) and the correlations (4), with CuPy's FFT work area; the
 #: rest stays free for the plans and the other shape's batches.
 GPU_MEMORY_SHARE, GPU_BYTES_PER_CELL = 0.25, 32
-#: Workspace sizes a thread keeps (:class:`CompiledBackend`): one search correlates on
-#: two or three grids (the dense search's coarse and fine ones, the placements'), each at
-#: one batch size.
-WORKSPACES = 4
 
 # -- correlation.batched: the runs the batches are shared out in ---------------------------
 # Calibrated on: the dense search's coarse grids of a turntable pair and a dragon pair

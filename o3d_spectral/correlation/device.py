@@ -1,7 +1,7 @@
 """Where the batched correlation runs: a device named in Open3D's manner.
 
 ``"CPU:0"`` (the default) runs :class:`~o3d_spectral.correlation.backend.CompiledBackend`
-on the CPU's cores; ``"CUDA:n"`` runs :class:`~o3d_spectral.correlation.backend.ArrayBackend`
+on the CPU's cores; ``"CUDA:n"`` runs :class:`~o3d_spectral.correlation.numpy_api.ArrayBackend`
 on CuPy, on the n-th GPU (the ``gpu`` extra: ``pip install 'o3d-spectral[gpu]'``). An
 ``open3d.core.Device`` names one as well (its ``str`` is the same text), so a caller holding
 Open3D's tensors passes their ``device``. CUDA asked for and not usable is refused, never
@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 from o3d_spectral.common.extras import require
 
-from .backend import ArrayBackend, Backend, CompiledBackend
+from .backend import Backend, CompiledBackend
+from .numpy_api import ArrayBackend
 
 __all__ = ["Device", "device_backend", "parse_device"]
 

@@ -40,8 +40,8 @@ from .options import GlobalSearchOption
 
 __all__ = [
     "Candidate", "egi_candidates", "shell_candidates", "swept_candidates", "span_factor",
-    "placed_peaks", "turned_correlation", "SWEEP_FACTOR", "SWEEP_SPAN", "SWEEP_PLACEMENTS",
-    "SWEEP_SENSOR_ANGLE", "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
+    "placed_peaks", "turned_correlation", "turned_cloud", "SWEEP_FACTOR", "SWEEP_SPAN",
+    "SWEEP_PLACEMENTS", "SWEEP_SENSOR_ANGLE", "SWEEP_PRESELECT_FACTOR", "SWEEP_PRESELECTED",
 ]
 
 
@@ -162,21 +162,29 @@ def turned_correlation(
     """The phase correlation of the moving cloud turned about its centroid against the
     whole fixed grid of ``factor`` voxels, batched over rotations
     (:class:`o3d_spectral.correlation.BatchedCorrelation`, on the stepper's backend, on
-    its ``device``), and the moving
-    cloud as it turns it: :meth:`o3d_spectral.SpectralStepper.locate`'s peak height for
-    each rotation (to single precision's rounding), culled as
-    :meth:`o3d_spectral.SpectralStepper.visible` culls."""
+    its ``device``), and the moving cloud as it turns it (:func:`turned_cloud`):
+    :meth:`o3d_spectral.SpectralStepper.locate`'s peak height for each rotation (to single
+    precision's rounding)."""
     grid = stepper.grid.coarsened(factor)
     box = grid.moving_box(moving.radius, moving.centroid)
     correlation = BatchedCorrelation(
         grid.values, box.shape, shape=grid.fft_shape(grid.box, box, moving.radius),
         sigma=grid.peak_width, backend=stepper.backend,
     )
+    return correlation, turned_cloud(stepper, moving, factor)
+
+
+def turned_cloud(stepper: SpectralStepper, moving: MovingCloud, factor: float) -> TurnedCloud:
+    """The moving cloud as a batched correlation on the fixed grid of ``factor`` voxels
+    turns it about its centroid, on its moving grid
+    (:meth:`~o3d_spectral.spectra.target_grid.TargetGrid.moving_box`): culled as
+    :meth:`o3d_spectral.SpectralStepper.visible` culls."""
+    grid = stepper.grid.coarsened(factor)
+    corner = grid.moving_box(moving.radius, moving.centroid).corner
     culled, voxel = stepper.sees(moving), grid.voxel_size
-    cloud = TurnedCloud(
-        (moving.points - moving.centroid) / voxel, (moving.centroid - box.corner) / voxel,
+    return TurnedCloud(
+        (moving.points - moving.centroid) / voxel, (moving.centroid - corner) / voxel,
         normals=moving.point_normals if culled else None,
-        viewpoint=(stepper.viewpoint - box.corner) / voxel if culled else None,
+        viewpoint=(stepper.viewpoint - corner) / voxel if culled else None,
         two_sided=moving.reading.two_sided, min_facing=MIN_POINTS, weighting=grid.weighting,
     )
-    return correlation, cloud

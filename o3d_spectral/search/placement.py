@@ -1,8 +1,9 @@
 """Candidates placed by phase correlation: the search's hypotheses, and what it keeps of them.
 
 Each candidate rotation is placed by one phase correlation of the turned moving cloud's
-voxel grid against the fixed one (:meth:`o3d_spectral.SpectralStepper.locate`) and scored
-by that correlation's peak height: how well the turned grid matches under any shift.
+voxel grid against the fixed one (:meth:`o3d_spectral.SpectralStepper.locate`'s, batched
+over the candidates: :mod:`o3d_spectral.correlation`) and scored by that correlation's
+peak height: how well the turned grid matches under any shift.
 Between two scans the candidates are first ranked on a coarser grid and only the best are
 placed. :class:`Placements` keeps every coarse score and placement of one registration by
 candidate key, so that a rotation ranked again (after the sweep, or near a place whose
@@ -16,16 +17,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..common.parallel import thread_map
+from ..correlation import BatchedCorrelation
 from ..law.loop import Climb
 from ..law.stepper import MovingCloud, SpectralStepper
 from ..spectra import so3
 from ..spectra.constants import COARSE_FACTOR
-from .candidates import Candidate, placed_peaks, span_factor
+from ..spectra.grid import Box
+from .candidates import Candidate, placed_peaks, span_factor, turned_cloud
 from .constants import PLACEMENT_SPAN
 
-__all__ = ["Hypothesis", "Placements", "place", "placement_factor", "best_first", "places",
-           "PLACEMENT_SPAN"]
+__all__ = ["Hypothesis", "Placements", "place", "placed_in", "placement_factor", "best_first",
+           "places", "PLACEMENT_SPAN"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,7 +98,9 @@ def place(
     most :data:`PLACEMENT_SPAN` cells, and only the ``coarse_placements`` (when over 0)
     that place best on one :data:`~o3d_spectral.spectra.target_grid.COARSE_FACTOR` times
     as coarse are kept. What is in ``placements`` is not measured again; what is measured
-    is added to it. Placed on ``workers`` threads (:func:`o3d_spectral.common.parallel.thread_map`).
+    is added to it, in one batched correlation on ``workers`` threads:
+    :meth:`o3d_spectral.SpectralStepper.locate`'s place, peak and ``J_t`` for each, to
+    single precision's rounding.
     """
     factor = 1.0
     if around is None:
@@ -104,11 +108,6 @@ def place(
         if two_scans and 0 < coarse_placements < len(candidates):
             candidates = _coarse_best(stepper, moving, candidates, placements,
                                       COARSE_FACTOR * factor, coarse_placements, workers)
-
-    def placed(candidate: Candidate) -> Hypothesis:
-        centre, peak, cost = stepper.locate(moving, candidate.rotation, around=around,
-                                            factor=factor)
-        return Hypothesis(candidate.rotation, centre, peak, cost, key_of(candidate))
 
     grid = stepper.grid.coarsened(factor)
     block = grid.search_box(moving.radius, around)  # the block locate searches
@@ -118,9 +117,38 @@ def place(
         return (candidate.key, *searched)
 
     new = [c for c in candidates if key_of(c) not in placements.placed]
-    for candidate, hypothesis in zip(new, thread_map(placed, new, workers), strict=True):
-        placements.placed[key_of(candidate)] = hypothesis
+    if new:
+        rotations = np.stack([c.rotation for c in new])
+        found = placed_in(stepper, moving, rotations, factor, block, workers)
+        for candidate, (centre, peak, cost) in zip(new, found, strict=True):
+            placements.placed[key_of(candidate)] = Hypothesis(
+                candidate.rotation, centre, peak, cost, key_of(candidate))
     return best_first([placements.placed[key_of(c)] for c in candidates])
+
+
+def placed_in(
+    stepper: SpectralStepper, moving: MovingCloud, rotations: NDArray[np.float64],
+    factor: float, block: Box, workers: int | None,
+) -> list[tuple[NDArray[np.float64], float, float]]:
+    """:meth:`o3d_spectral.SpectralStepper.locate`'s centre (metres), peak height and
+    ``J_t`` for the moving cloud turned by each of ``rotations`` (K, 3, 3), correlated
+    with the ``block`` of the fixed grid of ``factor`` voxels in one batched correlation
+    (:class:`o3d_spectral.correlation.BatchedCorrelation`) on ``workers`` threads. The
+    block's spectrum is the fixed grid's cached one, which the climbs from these places
+    correlate with next."""
+    grid = stepper.grid.coarsened(factor)
+    box = grid.moving_box(moving.radius, moving.centroid)
+    correlation = BatchedCorrelation(
+        grid.block(block), box.shape, shape=grid.fft_shape(block, box, moving.radius),
+        sigma=grid.peak_width, backend=stepper.backend,
+        searched=grid.searched(block, box, moving.radius), overlap=grid.block(box),
+        spectrum=grid.spectrum(block, box, moving.radius),
+    )
+    peaks = correlation.peaks(turned_cloud(stepper, moving, factor), rotations, workers)
+    shifts = block.offset - box.offset + peaks.shifts + peaks.fractions  # voxels
+    centres = moving.centroid + shifts * grid.voxel_size
+    return [(centres[i], float(peaks.heights[i]), 1.0 - float(peaks.overlaps[i]))
+            for i in range(len(rotations))]
 
 
 def placement_factor(voxel_size: float, radius: float, *, two_scans: bool) -> float:

@@ -6,7 +6,7 @@
 CACHED_PLANS = 8
 
 
-# -- spectra.kernels: the compiled loops ---------------------------------------------------
+# -- spectra.harmonic_kernels: the compiled sum of harmonics -------------------------------
 
 #: Directions whose harmonics :func:`harmonic_sums` carries through the recurrence
 #: together: each step is then a short loop over them that the compiler vectorises.

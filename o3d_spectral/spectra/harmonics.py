@@ -217,7 +217,7 @@ def project(
     distribution of unit vectors ``n_i``, truncated to ``l < B``. Rotating every ``n_i``
     by ``R`` multiplies the coefficients by ``U^l(R)`` exactly (no binning error).
     Computed in one compiled pass over the directions
-    (:func:`o3d_spectral.spectra.kernels.harmonic_sums`: no (B, B, N) Legendre table; 50k
+    (:func:`o3d_spectral.spectra.harmonic_kernels.harmonic_sums`: no (B, B, N) Legendre table; 50k
     normals at B = 16 in about 4 ms).
 
     Parameters
@@ -232,7 +232,7 @@ def project(
     -------
     ndarray, shape (B, 2B - 1)
     """
-    from .kernels import harmonic_sums  # numba: imported (and compiled) on first use
+    from .harmonic_kernels import harmonic_sums  # numba: imported (and compiled) on first use
 
     B = _check_bandwidth(bandwidth)
     n = np.asarray(directions, dtype=np.float64).reshape(-1, 3)

@@ -18,103 +18,12 @@ import numpy as np
 import scipy.fft  # compiled into the batched correlation (rocket-fft)
 from numpy.typing import NDArray
 
-from .constants import HARMONIC_BLOCK
+from .harmonic_kernels import harmonic_sums
 
 __all__ = [
-    "compile_all", "correlation_peaks_into", "harmonic_sums", "splat_into",
-    "turned_splat_into", "whitened", "whitened_into", "HARMONIC_BLOCK",
+    "compile_all", "correlation_peaks_into", "splat_into", "turned_splat_into", "whitened",
+    "whitened_into",
 ]
-
-
-@numba.njit(cache=True, nogil=True)
-def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
-    """Factors of the orthonormal Legendre recurrence
-    (:func:`o3d_spectral.spectra.harmonics.legendre`): sectoral ``c[m]``, and ``a[l, m]``,
-    ``b[l, m]`` of ``P_l^m = a (x P_{l-1}^m - b P_{l-2}^m)``."""
-    c = np.empty(B)
-    c[0] = np.sqrt(1.0 / (4.0 * np.pi))
-    for m in range(1, B):
-        c[m] = c[m - 1] * np.sqrt((2 * m + 1) / (2.0 * m))
-    a, b = np.zeros((B, B)), np.zeros((B, B))
-    for l in range(2, B):  # noqa: E741
-        for m in range(l - 1):
-            a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
-            b[l, m] = np.sqrt(((l - 1) ** 2 - m * m) / (4.0 * (l - 1) ** 2 - 1.0))
-    return c, a, b
-
-
-@numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
-def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
-    """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B``
-    (:func:`o3d_spectral.spectra.harmonics.project`).
-
-    The orthonormal Legendre recurrence runs over blocks of :data:`HARMONIC_BLOCK`
-    directions at once, each block's terms summed before they are added to ``F``
-    (reassociated sums: equal to a one-direction-at-a-time loop to rounding).
-
-    Parameters
-    ----------
-    directions : ndarray, shape (N, 3)
-        Unit vectors.
-    weights : ndarray, shape (N,)
-    B : int
-        Bandwidth.
-
-    Returns
-    -------
-    ndarray, shape (B, 2B - 1)
-        Orders ``m >= 0`` (cosine terms) at column ``B - 1 + m``, ``m < 0`` (sine terms of
-        ``|m|``) at ``B - 1 - |m|``.
-    """
-    F = np.zeros((B, 2 * B - 1))
-    c, a, b = _legendre_factors(B)
-    K = HARMONIC_BLOCK
-    x, s, cu, su = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
-    cm, sm, sine_power = np.empty(K), np.empty(K), np.empty(K)
-    wc, ws, p, before = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
-    for first in range(0, directions.shape[0], K):
-        k = min(K, directions.shape[0] - first)
-        for j in range(k):
-            i = first + j
-            x[j] = min(max(directions[i, 2], -1.0), 1.0)
-            s[j] = np.sqrt(max(1.0 - x[j] * x[j], 0.0))
-            rho = np.hypot(directions[i, 0], directions[i, 1])
-            cu[j], su[j] = 1.0, 0.0  # (cos phi, sin phi); phi = 0 at the poles
-            if rho > 1e-15:
-                cu[j], su[j] = directions[i, 0] / rho, directions[i, 1] / rho
-            cm[j], sm[j], sine_power[j] = 1.0, 0.0, 1.0  # cos(m phi), sin(m phi), sin^m
-        for m in range(B):
-            scale = np.sqrt(2.0) if m > 0 else 1.0
-            for j in range(k):
-                if m > 0:
-                    cosine_m = cm[j] * cu[j] - sm[j] * su[j]
-                    sm[j] = cm[j] * su[j] + sm[j] * cu[j]
-                    cm[j] = cosine_m
-                    sine_power[j] *= s[j]
-                w = weights[first + j] * scale
-                wc[j], ws[j] = w * cm[j], w * sm[j]
-                before[j] = 0.0  # P_{l-1}^m and P_l^m, from l = m
-                p[j] = c[m] * sine_power[j]
-            for l in range(m, B):  # noqa: E741
-                if l == m + 1:
-                    first_step = np.sqrt(2.0 * m + 3.0)
-                    for j in range(k):
-                        before[j] = p[j]
-                        p[j] = first_step * x[j] * before[j]
-                elif l > m + 1:
-                    a_lm, b_lm = a[l, m], b[l, m]  # scalars: the loop below vectorises
-                    for j in range(k):
-                        previous = p[j]
-                        p[j] = a_lm * (x[j] * previous - b_lm * before[j])
-                        before[j] = previous
-                cosine, sine = 0.0, 0.0
-                for j in range(k):
-                    cosine += p[j] * wc[j]
-                    sine += p[j] * ws[j]
-                F[l, B - 1 + m] += cosine
-                if m > 0:
-                    F[l, B - 1 - m] += sine
-    return F
 
 
 @numba.njit(cache=True, nogil=True)
@@ -284,10 +193,11 @@ def whitened(F: NDArray, G: NDArray, window: NDArray, eps: float, out: NDArray) 
 
 @numba.njit(cache=True, nogil=True)
 def correlation_peaks_into(
-    values: NDArray, index: NDArray, points: NDArray, rotations: NDArray, offset: NDArray,
-    normals: NDArray, viewpoint: NDArray, culled: bool, two_sided: bool, min_facing: int,
-    trilinear: bool, binary: bool, spectrum: NDArray, window: NDArray, eps: float,
-    grids: NDArray, spectra: NDArray, correlations: NDArray,
+    values: NDArray, index: NDArray, neighbours: NDArray, overlaps: NDArray, points: NDArray,
+    rotations: NDArray, offset: NDArray, normals: NDArray, viewpoint: NDArray, culled: bool,
+    two_sided: bool, min_facing: int, trilinear: bool, binary: bool, spectrum: NDArray,
+    window: NDArray, eps: float, searched: NDArray, overlap: NDArray, grids: NDArray,
+    spectra: NDArray, correlations: NDArray,
 ) -> None:
     """The phase-correlation peak of a cloud turned by each of a stack of rotations
     against one fixed spectrum (eqs. cross_power_spectrum and fourier_shift_solution), a
@@ -297,15 +207,23 @@ def correlation_peaks_into(
     to the FFT grid along the lines the moving grid reaches
     (:func:`o3d_spectral.spectra.fft.padded_forward`'s order of axes), whitened against
     ``spectrum`` (:func:`whitened_into`), transformed back, and each grid's largest value
-    and its flat index (the first of equals) read: the same values, to the bit, as those
-    steps run one by one from NumPy. The transforms are pocketfft's, compiled in through
-    rocket-fft, in place in the workspaces: nothing is allocated.
+    within ``searched`` and its flat index (the first of equals in C order) read, with
+    its six neighbours (for a sub-voxel fit) and the moving grid's inner product with
+    ``overlap``: the same values, to the bit, as those steps run one by one from NumPy.
+    The transforms are pocketfft's, compiled in through rocket-fft, in place in the
+    workspaces: nothing is allocated.
 
     Parameters
     ----------
     values : ndarray, shape (K,), float64
     index : ndarray, shape (K,), int64
         Filled: each rotation's peak (unscaled) and its flat index in the FFT grid.
+    neighbours : ndarray, shape (K, 3, 2), float64
+        Filled: the correlation one voxel before and after the peak along each axis
+        (wrapping around the FFT grid).
+    overlaps : ndarray, shape (K,), float64
+        Filled: ``<g, overlap> / |g|`` of each turned moving grid ``g`` (0 for an empty
+        grid); left as it is when ``overlap`` is empty.
     points, rotations, offset, normals, viewpoint, culled, two_sided, min_facing, \
 trilinear, binary
         As for :func:`turned_splat_into`; ``rotations`` (K, 3, 3).
@@ -314,6 +232,10 @@ trilinear, binary
     window : ndarray, shape (nx, ny, nz // 2 + 1), float32
     eps : float32
         As for :func:`whitened`.
+    searched : ndarray, shape (3,), int64
+        The peak is sought at indices below these per axis (the FFT grid's shape: all).
+    overlap : ndarray, shape (mx, my, mz) or empty, float64
+        A grid the moving grids are compared with before any shift.
     grids : ndarray, shape (B, mx, my, mz), float32
     spectra : ndarray, shape (B, nx, ny, nz // 2 + 1), complex64
     correlations : ndarray, shape (B, nx, ny, nz), float32
@@ -338,9 +260,49 @@ trilinear, binary
         scipy.fft.ifftn(out, axes=(1, 2), overwrite_x=True)
         grid = np.fft.irfft(out, n=nz, axis=-1, out=correlations[:count])
         for b in range(count):
-            flat = grid[b].ravel()
-            at = np.argmax(flat)
-            values[start + b], index[start + b] = flat[at], at
+            k = start + b
+            values[k], index[k] = _peak_into(grid[b], searched, neighbours[k])
+            if overlap.size:
+                overlaps[k] = _normalised_inner(block[b], overlap)
+
+
+@numba.njit(cache=True, nogil=True)
+def _peak_into(grid: NDArray, searched: NDArray, neighbours: NDArray) -> tuple[float, int]:
+    """The largest value of ``grid`` (3D) at indices below ``searched`` and its flat
+    index (the first of equals in C order); ``neighbours`` (3, 2) filled with the values
+    one voxel before and after it along each axis, wrapping around."""
+    best, at = grid[0, 0, 0], (0, 0, 0)
+    for i in range(searched[0]):
+        for j in range(searched[1]):
+            for k in range(searched[2]):
+                if grid[i, j, k] > best:
+                    best, at = grid[i, j, k], (i, j, k)
+    shape = grid.shape
+    for axis in range(3):
+        for side in range(2):
+            i, j, k = at
+            step = 2 * side - 1
+            if axis == 0:
+                i = (i + step) % shape[0]
+            elif axis == 1:
+                j = (j + step) % shape[1]
+            else:
+                k = (k + step) % shape[2]
+            neighbours[axis, side] = grid[i, j, k]
+    return best, (at[0] * shape[1] + at[1]) * shape[2] + at[2]
+
+
+@numba.njit(cache=True, nogil=True)
+def _normalised_inner(grid: NDArray, other: NDArray) -> float:
+    """``<grid, other> / |grid|`` of two grids of one shape (0 for an empty ``grid``),
+    summed in double precision."""
+    inner, norm = 0.0, 0.0
+    g, o = grid.ravel(), other.ravel()
+    for i in range(g.size):
+        value = np.float64(g[i])
+        inner += value * o[i]
+        norm += value * value
+    return inner / np.sqrt(norm) if norm > 0.0 else 0.0
 
 
 def compile_all() -> None:
@@ -360,11 +322,12 @@ def compile_all() -> None:
                                   0, trilinear, binary)
     spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
     whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
-    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64), u, eye[None], origin,
-                           normals, origin, False, False, 0, True, False,
-                           np.ones((2, 2, 2), dtype=np.complex64),
+    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros((1, 3, 2)),
+                           np.zeros(1), u, eye[None], origin, normals, origin, False, False, 0,
+                           True, False, np.ones((2, 2, 2), dtype=np.complex64),
                            np.ones((2, 2, 2), dtype=np.float32), np.float32(1e-6),
-                           cells, np.ones((1, 2, 2, 2), dtype=np.complex64),
+                           np.full(3, 2, dtype=np.int64), np.zeros((2, 2, 2)), cells,
+                           np.ones((1, 2, 2, 2), dtype=np.complex64),
                            np.ones((1, 2, 2, 2), dtype=np.float32))
 
 

@@ -150,6 +150,19 @@ class TargetGrid:
         """Whether ``fixed`` is a window correlated on its own FFT size (:meth:`fft_shape`)."""
         return fixed is not self.box and radius is not None and not self.holds_more(radius)
 
+    def searched(
+        self, fixed: Box, moving: Box, radius: float
+    ) -> tuple[int, int, int] | None:
+        """The shifts read of the correlation of ``moving`` (the grid of a cloud of
+        ``radius``, metres) with ``fixed`` on :meth:`fft_shape`: None for every shift, the
+        peak's index below ``fixed.shape`` a positive shift and the others negative; for a
+        window on its own FFT size, the block of indices, each a positive shift, that
+        keep the moving grid inside the window (the only ones that do not wrap around)."""
+        if not self._unpadded(fixed, radius):
+            return None
+        shape = self.fft_shape(fixed, moving, radius)
+        return tuple(int(n) for n in np.subtract(shape, moving.shape) + 1)
+
     def search_box(self, radius: float, around: ArrayLike | None = None) -> Box:
         """The block of the fixed grid a moving cloud of ``radius`` is correlated with.
 
@@ -187,10 +200,9 @@ class TargetGrid:
         fixed = self.search_box(radius, around)
         fft, spectrum = self._fft(fixed, box, radius)
         grid = self._unit_grid(moved, box, np.empty(box.shape, fft.dtype))
-        if self._unpadded(fixed, radius):  # the shifts keeping the moving grid in the block
-            bounds = {"searched": tuple(np.subtract(fft.shape, box.shape) + 1)}
-        else:  # every shift, read unambiguously
-            bounds = {"positive_below": fixed.shape}
+        searched = self.searched(fixed, box, radius)
+        bounds = ({"positive_below": fixed.shape} if searched is None
+                  else {"searched": searched})
         peak = cross_power_peak(
             fft.forward_padded(grid), spectrum, fft, sigma=self.peak_width, **bounds
         )
@@ -219,10 +231,11 @@ class TargetGrid:
             overlap = float(np.sum(g * grid[a[0] : b[0], a[1] : b[1], a[2] : b[2]]))
         return 1.0 - overlap  # 1/2 (|g|^2 + |f|^2) - <g, f> with |g| = |f| = 1
 
-    def _block(self, box: Box) -> NDArray[np.float64]:
-        """The unit-norm fixed grid on ``box`` (zero outside the fixed cloud's box)."""
+    def block(self, box: Box) -> NDArray[np.float64]:
+        """The unit-norm fixed grid on ``box`` (zero outside the fixed cloud's box; the
+        grid itself, read only, for :attr:`box`)."""
         if box is self.box:
-            return self._grid
+            return self.values
         out = np.zeros(box.shape)
         lo = np.maximum(box.offset, self.box.offset)
         hi = np.minimum(box.offset + box.shape, self.box.offset + self.box.shape)
@@ -233,6 +246,15 @@ class TargetGrid:
                 c[0] : d[0], c[1] : d[1], c[2] : d[2]
             ]
         return out
+
+    def spectrum(self, fixed: Box, moving: Box, radius: float) -> NDArray[np.complexfloating]:
+        """The half spectrum of the block ``fixed`` on the FFT grid on which ``moving``
+        (the grid of a cloud of ``radius``, metres) is correlated with it
+        (:meth:`fft_shape`), single precision, read only: the one every correlation
+        against that block shares (cached)."""
+        spectrum = self._fft(fixed, moving, radius)[1].view()
+        spectrum.flags.writeable = False
+        return spectrum
 
     def _fft(
         self, fixed: Box, moving: Box, radius: float
@@ -249,7 +271,7 @@ class TargetGrid:
             check_memory(shape, self.max_memory, "voxel grids")
             padded = np.zeros(shape, dtype=fft.dtype)
             f = fixed.shape
-            padded[: f[0], : f[1], : f[2]] = self._block(fixed)
+            padded[: f[0], : f[1], : f[2]] = self.block(fixed)
             spectrum = np.array(fft.forward(padded))
             with self._lock:
                 if len(self._spectra) >= CACHED_SPECTRA:

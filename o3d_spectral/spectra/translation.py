@@ -24,6 +24,7 @@ from .fft import RealFFT3
 
 __all__ = [
     "PeakEstimate", "gaussian_window", "peak_scale", "phase_correlation", "cross_power_peak",
+    "subvoxel_offsets",
 ]
 
 
@@ -94,23 +95,34 @@ def _subvoxel(
 ) -> NDArray[np.float64]:
     """Offset in [-0.5, 0.5] of the peak from ``index`` along each axis (Gaussian fit);
     none along an axis where a neighbour lies outside ``bounds`` (per axis, when given)."""
-    offsets = np.zeros(3)
+    around = np.empty((3, 3), dtype=values.dtype)
     for axis in range(3):
-        n = values.shape[axis]
-        if bounds is not None and not 0 < index[axis] < bounds[axis] - 1:
-            continue
-        around = []
-        for step in (-1, 0, 1):
+        for side, step in enumerate((-1, 0, 1)):
             i = list(index)
-            i[axis] = (i[axis] + step) % n
-            around.append(values[tuple(i)])
-        lo, mid, hi = around
-        if lo > 0 and mid > 0 and hi > 0:  # log-parabola: exact for a sampled Gaussian
-            lo, mid, hi = np.log(lo), np.log(mid), np.log(hi)
-        curvature = lo - 2.0 * mid + hi
-        if curvature < 0:
-            offsets[axis] = np.clip(0.5 * (lo - hi) / curvature, -0.5, 0.5)
+            i[axis] = (i[axis] + step) % values.shape[axis]
+            around[axis, side] = values[tuple(i)]
+    offsets = subvoxel_offsets(around[:, 0], around[:, 1], around[:, 2])
+    if bounds is not None:
+        offsets[~((0 < np.asarray(index)) & (np.asarray(index) < np.asarray(bounds) - 1))] = 0.0
     return offsets
+
+
+def subvoxel_offsets(
+    before: NDArray[np.floating], peak: NDArray[np.floating], after: NDArray[np.floating]
+) -> NDArray[np.float64]:
+    """Offsets in [-0.5, 0.5] of a sampled peak's summit from the sample ``peak``, given
+    the samples ``before`` and ``after`` it along one axis (arrays of one shape): the
+    vertex of the parabola through the three logarithms where all three are positive
+    (exact for a sampled Gaussian, the windowed correlation's peak), through the values
+    otherwise; 0 where they do not curve down. In the samples' precision."""
+    lo, mid, hi = (np.asarray(v) for v in (before, peak, after))
+    positive = (lo > 0) & (mid > 0) & (hi > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo, mid, hi = (np.where(positive, np.log(np.where(positive, v, v.dtype.type(1))), v)
+                       for v in (lo, mid, hi))
+        curvature = lo - 2.0 * mid + hi
+        offsets = np.clip(0.5 * (lo - hi) / curvature, -0.5, 0.5)
+    return np.where(curvature < 0, offsets, 0.0).astype(np.float64)
 
 
 def cross_power_peak(
