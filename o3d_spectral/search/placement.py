@@ -134,8 +134,9 @@ def placed_in(
     ``J_t`` for the moving cloud turned by each of ``rotations`` (K, 3, 3), correlated
     with the ``block`` of the fixed grid of ``factor`` voxels in one batched correlation
     (:class:`o3d_spectral.correlation.BatchedCorrelation`) on ``workers`` threads. The
-    block's spectrum is the fixed grid's cached one, which the climbs from these places
-    correlate with next."""
+    block's spectrum is the fixed grid's cached one
+    (:meth:`o3d_spectral.spectra.target_grid.TargetGrid.spectrum`), shared with the
+    correlations against that block that follow."""
     grid = stepper.grid.coarsened(factor)
     box = grid.moving_box(moving.radius, moving.centroid)
     correlation = BatchedCorrelation(
