@@ -16,6 +16,37 @@ def test_kernels_compile_ahead_from_the_command_line():
     assert done.stdout.startswith("o3d_spectral kernels ready in ")
 
 
+@pytest.mark.slow
+def test_compiling_ahead_covers_the_types_the_correlation_passes():
+    """After ``compile_all`` a batched correlation with every output (peaks, neighbours,
+    overlaps) and a single correlation's splat on its single-precision grid compile
+    nothing more: the first registration does not pay for it."""
+    code = (
+        "import numpy as np\n"
+        "from o3d_spectral.spectra import kernels\n"
+        "from o3d_spectral.correlation import BatchedCorrelation, TurnedCloud\n"
+        "kernels.compile_all()\n"
+        "ahead = {k: set(f.signatures) for k, f in vars(kernels).items()\n"
+        "         if hasattr(f, 'signatures')}\n"
+        "cloud = TurnedCloud(np.random.default_rng(0).uniform(-4, 4, (50, 3)), [6.0] * 3)\n"
+        "fixed = BatchedCorrelation.grid_of(cloud, (12, 12, 12))\n"
+        "for overlap in (None, fixed):\n"
+        "    BatchedCorrelation(fixed, (12, 12, 12), overlap=overlap).peaks(\n"
+        "        cloud, np.eye(3)[None])\n"
+        "from o3d_spectral.spectra.grid import Box, Lattice, splat\n"
+        "box = Box(Lattice(np.zeros(3), 1.0), np.zeros(3, dtype=np.int64), (12, 12, 12))\n"
+        "splat(cloud.points + 6.0, box, out=np.empty((12, 12, 12), np.float32))\n"
+        "later = {k: set(f.signatures) - ahead[k] for k, f in vars(kernels).items()\n"
+        "         if hasattr(f, 'signatures')}\n"
+        "print({k: len(v) for k, v in later.items() if v})\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "{}"
+
+
 @pytest.mark.parametrize("culled", [False, True])
 @pytest.mark.parametrize("cropped", [False, True])
 def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):

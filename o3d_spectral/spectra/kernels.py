@@ -5,7 +5,7 @@ Each kernel is a plain loop over its input, compiled on first use and cached on 
 and release the GIL (``nogil``): threads run them side by side; their callers check and
 shape the arguments.
 
-Compiling them takes about 6 s of CPU once after installation (most of it the batched
+Compiling them takes 6-9 s of CPU once after installation (most of it the batched
 correlation's, whose transforms rocket-fft compiles in); loading them from the cache,
 about 0.3 s in each process that uses them. ``python -m o3d_spectral.spectra.kernels``
 (:func:`compile_all`) compiles them ahead, so that no registration pays for it.
@@ -218,7 +218,7 @@ def correlation_peaks_into(
     values : ndarray, shape (K,), float64
     index : ndarray, shape (K,), int64
         Filled: each rotation's peak (unscaled) and its flat index in the FFT grid.
-    neighbours : ndarray, shape (K, 3, 2), float64
+    neighbours : ndarray, shape (K, 3, 2), float32
         Filled: the correlation one voxel before and after the peak along each axis
         (wrapping around the FFT grid).
     overlaps : ndarray, shape (K,), float64
@@ -307,11 +307,13 @@ def _normalised_inner(grid: NDArray, other: NDArray) -> float:
 
 def compile_all() -> None:
     """Compile (or load from the cache) every kernel for the argument types the package
-    passes: C-contiguous float64 arrays, each combination of the flags."""
-    grid, u, weights = np.zeros((2, 2, 2)), np.zeros((1, 3)), np.ones(1)
-    for trilinear in (False, True):
-        for binary in (False, True):
-            splat_into(grid, u, weights, trilinear, binary)
+    passes: C-contiguous arrays (grids of single or double precision, the correlation's
+    cached window read only), each combination of the flags."""
+    u, weights = np.zeros((1, 3)), np.ones(1)
+    for grid in (np.zeros((2, 2, 2)), np.zeros((2, 2, 2), dtype=np.float32)):
+        for trilinear in (False, True):
+            for binary in (False, True):
+                splat_into(grid, u, weights, trilinear, binary)
     harmonic_sums(np.array([[0.0, 0.0, 1.0]]), weights, 2)
     eye, origin, normals = np.eye(3), np.zeros(3), np.zeros((1, 3))
     cells = np.zeros((1, 2, 2, 2), dtype=np.float32)  # the batched correlation's grids
@@ -322,10 +324,12 @@ def compile_all() -> None:
                                   0, trilinear, binary)
     spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
     whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
-    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros((1, 3, 2)),
-                           np.zeros(1), u, eye[None], origin, normals, origin, False, False, 0,
-                           True, False, np.ones((2, 2, 2), dtype=np.complex64),
-                           np.ones((2, 2, 2), dtype=np.float32), np.float32(1e-6),
+    window = np.ones((2, 2, 2), dtype=np.float32)
+    window.flags.writeable = False  # as the correlation's cached Gaussian window
+    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64),
+                           np.zeros((1, 3, 2), dtype=np.float32), np.zeros(1), u, eye[None],
+                           origin, normals, origin, False, False, 0, True, False,
+                           np.ones((2, 2, 2), dtype=np.complex64), window, np.float32(1e-6),
                            np.full(3, 2, dtype=np.int64), np.zeros((2, 2, 2)), cells,
                            np.ones((1, 2, 2, 2), dtype=np.complex64),
                            np.ones((1, 2, 2, 2), dtype=np.float32))
