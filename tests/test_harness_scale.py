@@ -214,6 +214,29 @@ def test_peers_run_on_a_tiny_instance(method, module, suite_dir, tmp_path):
     assert frame["transformation"].map(len).eq(4).all()
 
 
+_THREADS_AROUND_KISS_MATCHER = """
+import os, numpy as np, open3d as o3d
+from o3d_spectral.harness.peers import kiss_matcher
+o3d.utility.set_max_threads(1)  # as the harness's workers run
+cloud = o3d.geometry.PointCloud(
+    o3d.utility.Vector3dVector(np.random.default_rng(0).random((4000, 3))))
+cloud.estimate_normals()
+allowed, before = os.sched_getaffinity(0), len(os.listdir("/proc/self/task"))
+kiss_matcher(cloud, o3d.geometry.PointCloud(cloud), 0.05, 0)
+print(len(os.listdir("/proc/self/task")) - before, os.sched_getaffinity(0) == allowed)
+"""
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs")
+def test_kiss_matcher_starts_no_thread_and_leaves_the_affinity_as_it_was():
+    pytest.importorskip("kiss_matcher", reason="kiss_matcher is not installed")
+    # On several threads its oneTBB pool made a seeded run's rows differ from run to run.
+    env = os.environ | {"OMP_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", _THREADS_AROUND_KISS_MATCHER], env=env,
+                          capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["0", "True"]
+
+
 @pytest.mark.slow
 def test_tuned_fpfh_skips_the_tuning_split_and_is_reported_off_it(suite_dir, tmp_path):
     from o3d_spectral.harness.report import make_report
