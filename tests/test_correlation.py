@@ -97,11 +97,12 @@ def test_both_backends_cull_alike_and_agree(cloud, two_sided):
         np.testing.assert_allclose(BatchedCorrelation.grid_of(culled, MOVING, R),
                                    splat(u[facing], box), atol=1e-5)
     fixed = scene(cloud, rotations[3], [10.0, 9.0, 11.0])
-    overlap = fixed[2:18, 1:17, 3:19]
-    for searched in (None, (6, 4, 7)):
+    for searched, at in ((None, (2, 1, 3)), ((6, 4, 7), (-3, 5, 8))):  # inside; astride
         compiled, array = (BatchedCorrelation(fixed, MOVING, backend=backend, searched=searched,
-                                              overlap=overlap).peaks(culled, rotations)
+                                              overlap=fixed, overlap_at=at).peaks(culled,
+                                                                                  rotations)
                            for backend in (CompiledBackend(), ArrayBackend()))
+        assert np.all(compiled.overlaps > 0)
         np.testing.assert_allclose(array.heights, compiled.heights, rtol=1e-4)
         np.testing.assert_array_equal(array.shifts, compiled.shifts)
         np.testing.assert_allclose(array.fractions, compiled.fractions, atol=1e-3)
@@ -120,6 +121,22 @@ def test_the_overlap_is_the_unit_moving_grids_inner_product_before_any_shift(clo
     for R, found in zip(rotations, peaks.overlaps, strict=True):
         grid = BatchedCorrelation.grid_of(moving, MOVING, R).astype(np.float64)
         assert found == pytest.approx(np.sum(grid * overlap) / np.linalg.norm(grid), rel=1e-12)
+    # A larger grid, the moving grid's corner anywhere in it (or astride its edges): the
+    # inner product over the cells they share, the moving grid's norm over all of it.
+    larger = np.random.default_rng(3).uniform(size=(20, 18, 22))
+    for at in [(2, 1, 3), (-4, 6, 15), (0, -16, 0), (20, 0, 0)]:
+        padded = np.zeros((60, 60, 60))
+        padded[20:40, 20:38, 20:42] = larger
+        on_moving = padded[tuple(slice(20 + a, 20 + a + n) for a, n in zip(at, MOVING,
+                                                                           strict=True))]
+        expected = BatchedCorrelation(fixed, MOVING, overlap=on_moving).peaks(moving, rotations)
+        # the array backend splats in another order: its single-precision grids differ
+        for backend, rtol in ((CompiledBackend(), 1e-12), (ArrayBackend(), 1e-6)):
+            found = BatchedCorrelation(fixed, MOVING, backend=backend, overlap=larger,
+                                       overlap_at=at).peaks(moving, rotations)
+            np.testing.assert_allclose(found.overlaps, expected.overlaps, rtol=rtol, atol=0)
+        if at[1] == -16:  # nothing shared
+            np.testing.assert_array_equal(expected.overlaps, 0.0)
     unasked = BatchedCorrelation(fixed, MOVING).peaks(moving, rotations)
     np.testing.assert_array_equal(unasked.overlaps, 0.0)
     np.testing.assert_array_equal(unasked.heights, peaks.heights)
@@ -186,8 +203,11 @@ def test_bad_arguments_are_named(cloud):
         BatchedCorrelation(np.zeros((4, 4)), MOVING)
     with pytest.raises(ValueError, match=r"searched \(0, 4, 4\) must lie within"):
         BatchedCorrelation(np.zeros(FIXED), MOVING, searched=(0, 4, 4))
-    with pytest.raises(ValueError, match=r"overlap must be a grid of the moving shape"):
-        BatchedCorrelation(np.zeros(FIXED), MOVING, overlap=np.zeros((3, 3, 3)))
+    with pytest.raises(ValueError, match=r"overlap must be a 3D grid"):
+        BatchedCorrelation(np.zeros(FIXED), MOVING, overlap=np.zeros((3, 3)))
+    for at in [(1, 2), (0.5, 0.0, 0.0)]:
+        with pytest.raises(ValueError, match=r"overlap_at must be 3 whole numbers"):
+            BatchedCorrelation(np.zeros(FIXED), MOVING, overlap=np.zeros(FIXED), overlap_at=at)
     with pytest.raises(ValueError, match="weighting must be one of"):
         TurnedCloud(points, np.zeros(3), weighting="nearest")
     with pytest.raises(ValueError, match="normals must have shape"):

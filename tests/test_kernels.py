@@ -19,8 +19,8 @@ def test_kernels_compile_ahead_from_the_command_line():
 @pytest.mark.slow
 def test_compiling_ahead_covers_the_types_the_correlation_passes():
     """After ``compile_all`` a batched correlation with every output (peaks, neighbours,
-    overlaps) and a single correlation's splat on its single-precision grid compile
-    nothing more: the first registration does not pay for it."""
+    overlaps) and a single correlation (the law's, on the fixed grid's cached spectrum)
+    compile nothing more: the first registration does not pay for it."""
     code = (
         "import numpy as np\n"
         "from o3d_spectral.spectra import kernels\n"
@@ -33,9 +33,10 @@ def test_compiling_ahead_covers_the_types_the_correlation_passes():
         "for overlap in (None, fixed):\n"
         "    BatchedCorrelation(fixed, (12, 12, 12), overlap=overlap).peaks(\n"
         "        cloud, np.eye(3)[None])\n"
-        "from o3d_spectral.spectra.grid import Box, Lattice, splat\n"
-        "box = Box(Lattice(np.zeros(3), 1.0), np.zeros(3, dtype=np.int64), (12, 12, 12))\n"
-        "splat(cloud.points + 6.0, box, out=np.empty((12, 12, 12), np.float32))\n"
+        "from o3d_spectral.spectra.target_grid import TargetGrid\n"
+        "grid = TargetGrid(cloud.points, 1.0, weighting='trilinear', peak_width=1.0,\n"
+        "                  window=4, max_memory=1e9)\n"
+        "grid.correlate(cloud.points + 0.5, 4.0 * 3**0.5, np.zeros(3), around=[0.5] * 3)\n"
         "later = {k: set(f.signatures) - ahead[k] for k, f in vars(kernels).items()\n"
         "         if hasattr(f, 'signatures')}\n"
         "print({k: len(v) for k, v in later.items() if v})\n"
@@ -79,7 +80,11 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
     spectrum = padded_forward(fixed, shape)[0].astype(np.complex64)
     window = rng.uniform(0.5, 1.0, spectrum.shape).astype(np.float32)
     eps = np.float32(1e-6)
-    overlap = rng.uniform(0.0, 1.0, moving)
+    overlap = rng.uniform(0.0, 1.0, (20, 12, 17))  # the moving grid astride its edges
+    overlap_at = np.array([-2, 3, 1])
+    padded = np.zeros((40, 40, 40))
+    padded[10:30, 10:22, 10:27] = overlap
+    on_moving = padded[8:22, 13:27, 11:25]  # 10 + overlap_at onwards, the moving shape
 
     grids = np.zeros((len(rotations), *moving), dtype=np.float32)
     turned_splat_into(grids, points, rotations, offset, normals, viewpoint, *flags)
@@ -97,7 +102,7 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
         [np.roll(correlations, -step, axis=1 + axis)[(np.arange(len(rotations)), *at.T)]
          for step in (-1, 1)], axis=-1) for axis in range(3)], axis=1)
     flat = grids.reshape(len(rotations), -1).astype(np.float64)
-    expected_overlaps = flat @ overlap.ravel() / np.linalg.norm(flat, axis=1)
+    expected_overlaps = flat @ on_moving.ravel() / np.linalg.norm(flat, axis=1)
     for batch in (1, 3, 7, 50):  # workspaces left dirty by the batch before
         workspaces = (np.full((batch, *moving), 9.0, dtype=np.float32),
                       np.full((batch, *spectrum.shape), 9.0, dtype=np.complex64),
@@ -107,7 +112,7 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
         overlaps = np.zeros(len(rotations))
         correlation_peaks_into(values, index, neighbours, overlaps, points, rotations, offset,
                                normals, viewpoint, *flags, spectrum, window, eps,
-                               np.array(searched), overlap, *workspaces)
+                               np.array(searched), overlap, overlap_at, *workspaces)
         np.testing.assert_array_equal(values, expected_values)
         np.testing.assert_array_equal(index, expected_index)
         np.testing.assert_array_equal(neighbours, expected_neighbours)

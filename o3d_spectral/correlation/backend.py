@@ -24,16 +24,15 @@ holds them to 1e-5).
 
 from __future__ import annotations
 
-import threading
 from abc import ABC, abstractmethod
-from collections import OrderedDict
 from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .constants import BATCH_BYTES, WORKSPACES
+from ..spectra.correlation_loop import correlation_peaks
+from .constants import BATCH_BYTES
 from .turned import TurnedCloud
 
 __all__ = ["Backend", "CompiledBackend", "Fixed", "Found", "array_backend", "BATCH_BYTES"]
@@ -57,9 +56,11 @@ class Fixed(NamedTuple):
         The moving grid and the FFT grid.
     searched : tuple of 3 int
         The peak is sought at indices below these per axis (:attr:`shape`: everywhere).
-    overlap : array, shape ``moving_shape`` or (0, 0, 0), float64
-        The fixed grid on the moving grid's cells, which each turned moving grid is
-        compared with before any shift (:attr:`Found.overlaps`); empty: not compared.
+    overlap : array, 3D or shape (0, 0, 0), float64
+        A fixed grid each turned moving grid is compared with before any shift, over the
+        cells they share (:attr:`Found.overlaps`); empty: not compared.
+    overlap_at : ndarray, shape (3,), int64
+        The moving grid's corner in :attr:`overlap`, cells.
     """
 
     spectrum: Array
@@ -69,6 +70,7 @@ class Fixed(NamedTuple):
     shape: tuple[int, int, int]
     searched: tuple[int, int, int]
     overlap: Array
+    overlap_at: NDArray[np.int64]
 
 
 class Found(NamedTuple):
@@ -150,47 +152,13 @@ class Backend(ABC):
 
 
 class CompiledBackend(Backend):
-    """NumPy on the CPU: the whole pipeline as one compiled loop
-    (:func:`o3d_spectral.spectra.kernels.correlation_peaks_into`) over a run of batches on
-    the calling thread, outside the GIL (see the module docstring).
-
-    Each thread keeps the loop's workspaces (a batch's moving grids, spectra and
-    correlations) for its next runs: the loop allocates nothing. Fresh large arrays for
-    every call would have the memory allocator return them to the system and fault them
-    in again, call after call (over 1,600 page faults a call of 24 rotations on a
-    turntable pair's 27x30x36 grids, each rotation 1.7x as long as in a call of six).
-    """
+    """NumPy on the CPU: the whole pipeline as one compiled loop over a run of batches on
+    the calling thread, outside the GIL, on the workspaces the thread keeps
+    (:func:`o3d_spectral.spectra.correlation_loop.correlation_peaks`; see the module
+    docstring)."""
 
     xp = np
     threaded = True
-
-    def __init__(self) -> None:
-        self._local = threading.local()
-
-    def __getstate__(self) -> dict:
-        return {}  # the workspaces stay with their threads (a copy starts without)
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__()
-
-    def _workspaces(self, batch: int, fixed: Fixed) -> tuple[NDArray, NDArray, NDArray]:
-        """This thread's workspaces for batches of ``batch`` grids against ``fixed``: the
-        moving grids, their half spectra and their correlations, kept for its next runs
-        (the last :data:`WORKSPACES` sizes)."""
-        kept = getattr(self._local, "workspaces", None)
-        if kept is None:
-            kept = self._local.workspaces = OrderedDict()
-        key = (batch, fixed.moving_shape, fixed.shape)
-        arrays = kept.pop(key, None)
-        if arrays is None:
-            nx, ny, nz = fixed.shape
-            arrays = (np.empty((batch, *fixed.moving_shape), dtype=np.float32),
-                      np.empty((batch, nx, ny, nz // 2 + 1), dtype=np.complex64),
-                      np.empty((batch, nx, ny, nz), dtype=np.float32))
-        kept[key] = arrays
-        if len(kept) > WORKSPACES:
-            kept.popitem(last=False)
-        return arrays
 
     def splat(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], grid: tuple[int, int, int]
@@ -198,8 +166,9 @@ class CompiledBackend(Backend):
         from ..spectra.kernels import turned_splat_into
 
         grids = np.zeros((len(rotations), *grid), dtype=np.float32)
-        turned_splat_into(grids, cloud.points, np.ascontiguousarray(rotations, dtype=np.float64),
-                          cloud.offset, *_culling(cloud))
+        points, *rest = cloud.splat
+        turned_splat_into(grids, points, np.ascontiguousarray(rotations, dtype=np.float64),
+                          *rest)
         return grids
 
     def forward(
@@ -214,27 +183,12 @@ class CompiledBackend(Backend):
     def correlate(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int, fixed: Fixed
     ) -> Found:
-        from ..spectra.kernels import correlation_peaks_into
-
-        k = len(rotations)
-        found = Found(np.empty(k), np.empty(k, dtype=np.int64),
-                      np.empty((k, 3, 2), dtype=np.float32), np.zeros(k))
-        correlation_peaks_into(*found, cloud.points,
-                               np.ascontiguousarray(rotations, dtype=np.float64), cloud.offset,
-                               *_culling(cloud), fixed.spectrum, fixed.window,
-                               np.float32(fixed.eps), np.asarray(fixed.searched, dtype=np.int64),
-                               fixed.overlap, *self._workspaces(batch, fixed))
-        return found
-
-
-def _culling(cloud: TurnedCloud) -> tuple:
-    """The compiled splat's arguments after the offset: normals, viewpoint, culled,
-    two_sided, min_facing, trilinear, binary (the points and offset stand in for the
-    normals and viewpoint of a cloud that is not culled)."""
-    normals = cloud.normals if cloud.culled else cloud.points
-    viewpoint = cloud.viewpoint if cloud.culled else cloud.offset
-    return (normals, viewpoint, cloud.culled, cloud.two_sided, cloud.min_facing,
-            cloud.weighting == "trilinear", cloud.weighting == "binary")
+        found = correlation_peaks(
+            cloud.splat, rotations, fixed.spectrum, fixed.window, fixed.eps, fixed.searched,
+            fixed.overlap, fixed.overlap_at, batch=batch, moving_shape=fixed.moving_shape,
+            shape=fixed.shape,
+        )
+        return Found(*found)
 
 
 def array_backend(backend: Backend | None = None) -> Backend:

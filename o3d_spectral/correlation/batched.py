@@ -23,8 +23,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..common.parallel import resolved_workers, thread_map
+from ..spectra.constants import WHITENING_EPS
 from ..spectra.fft import next_fast_len
-from ..spectra.translation import gaussian_window, peak_scale, subvoxel_offsets
+from ..spectra.translation import gaussian_window, peak_scale, peak_shifts
 from .backend import Backend, Fixed, Found, array_backend
 from .constants import RUNS_PER_WORKER
 from .turned import TurnedCloud
@@ -85,9 +86,12 @@ class BatchedCorrelation:
         shift: for a fixed block filling the FFT grid, ``shape - moving_shape + 1``, the
         shifts that keep the moving grid inside it. Every shift of the padded grids when
         omitted.
-    overlap : array_like, shape ``moving_shape``, optional
-        A grid each turned moving grid is compared with before any shift
-        (:attr:`Peaks.overlaps`): the fixed grid on the moving grid's cells.
+    overlap : array_like, 3D, optional
+        A grid each turned moving grid is compared with before any shift, over the cells
+        they share (:attr:`Peaks.overlaps`): the fixed grid.
+    overlap_at : array_like of 3 int, optional
+        The moving grid's corner in ``overlap``, cells (any, negative too; the origin
+        when omitted).
     spectrum : array_like, shape (nx, ny, nz // 2 + 1), optional
         The fixed grid's half spectrum on ``shape`` where it is already known (shared
         with other correlations against it); computed from ``fixed`` when omitted.
@@ -109,9 +113,10 @@ class BatchedCorrelation:
 
     def __init__(
         self, fixed: ArrayLike, moving_shape: tuple[int, int, int], *,
-        shape: tuple[int, int, int] | None = None, sigma: float = 1.0, eps: float = 1e-6,
+        shape: tuple[int, int, int] | None = None, sigma: float = 1.0, eps: float = WHITENING_EPS,
         backend: Backend | None = None, searched: tuple[int, int, int] | None = None,
-        overlap: ArrayLike | None = None, spectrum: ArrayLike | None = None,
+        overlap: ArrayLike | None = None, overlap_at: ArrayLike | None = None,
+        spectrum: ArrayLike | None = None,
     ) -> None:
         fixed = np.asarray(fixed, dtype=np.float32)
         if fixed.ndim != 3:
@@ -140,12 +145,16 @@ class BatchedCorrelation:
                                           self.backend.xp.float32)
             compared = np.zeros((0, 0, 0)) if overlap is None else np.asarray(overlap,
                                                                                 dtype=np.float64)
-            if overlap is not None and compared.shape != self.moving_shape:
-                raise ValueError(f"overlap must be a grid of the moving shape "
-                                 f"{self.moving_shape}, got shape {compared.shape}")
+            if compared.ndim != 3:
+                raise ValueError(f"overlap must be a 3D grid, got shape {compared.shape}")
+            at = np.zeros(3, dtype=np.int64) if overlap_at is None else np.asarray(overlap_at)
+            if at.shape != (3,) or not np.issubdtype(at.dtype, np.integer):
+                raise ValueError(f"overlap_at must be 3 whole numbers of cells, got {overlap_at!r}")
             self.fixed = Fixed(self._spectrum(fixed, spectrum), window, float(eps),
                                self.moving_shape, self.shape, self.searched or self.shape,
-                               self.backend.asarray(compared, self.backend.xp.float64))
+                               self.backend.asarray(np.ascontiguousarray(compared),
+                                                    self.backend.xp.float64),
+                               at.astype(np.int64))
         except MemoryError as error:
             raise self._too_large() from error
 
@@ -158,8 +167,8 @@ class BatchedCorrelation:
         if np.shape(spectrum) != expected:
             raise ValueError(f"spectrum must be the half spectrum of the FFT grid {self.shape},"
                              f" shape {expected}, got {np.shape(spectrum)}")
-        own = np.array(spectrum, dtype=np.complex64)  # writeable and C-contiguous, as
-        return self.backend.asarray(own, self.backend.xp.complex64)  # the loop reads it
+        own = np.ascontiguousarray(spectrum, dtype=np.complex64)  # as the loop reads it
+        return self.backend.asarray(own, self.backend.xp.complex64)
 
     @staticmethod
     def grid_of(
@@ -197,16 +206,9 @@ class BatchedCorrelation:
         found = thread_map(lambda run: self._run_peaks(cloud, run, batch), runs, workers)
         values, index, neighbours, overlaps = (np.concatenate(column) for column in
                                                zip(*found, strict=True))
-        at = np.stack(np.unravel_index(index, self.shape), axis=-1).reshape(-1, 3)
-        peak = values.astype(np.float32)  # the fit in the correlation's precision
-        fractions = np.stack([subvoxel_offsets(neighbours[:, a, 0], peak, neighbours[:, a, 1])
-                              for a in range(3)], axis=-1).reshape(-1, 3)
-        if self.searched is not None:  # no fit across the searched block's edge
-            fractions[(at == 0) | (at >= np.asarray(self.searched) - 1)] = 0.0
-            shifts = at
-        else:
-            shifts = np.where(at >= np.asarray(self.fixed_shape), at - np.asarray(self.shape), at)
-        return Peaks(values * self.scale, shifts.astype(np.int64), fractions, overlaps)
+        shifts, fractions = peak_shifts(index, values, neighbours, self.shape,
+                                        positive_below=self.fixed_shape, searched=self.searched)
+        return Peaks(values * self.scale, shifts, fractions, overlaps)
 
     def _run_peaks(
         self, cloud: TurnedCloud, rotations: NDArray[np.float64], batch: int

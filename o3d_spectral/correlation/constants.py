@@ -11,10 +11,6 @@
 #: the time a rotation takes is the same to 5% on one worker and on two (27x30x36 grids:
 #: 0.18 ms in batches of 2, 4 or 8); past it a batch is slower (0.21 ms in batches of 35).
 BATCH_BYTES = 2**20
-#: Workspace sizes a thread keeps (:class:`CompiledBackend`): one search correlates on
-#: two or three grids (the dense search's coarse and fine ones, the placements'), each at
-#: one batch size.
-WORKSPACES = 4
 
 # -- correlation.numpy_api: the batches on a GPU -------------------------------------------
 # Calibrated on: the bytes CuPy's pipeline holds per cell of the FFT grid, counted array by

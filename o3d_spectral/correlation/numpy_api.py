@@ -119,7 +119,7 @@ class ArrayBackend(Backend):
                        np.zeros((0, 3, 2), dtype=np.float32), np.zeros(0))]
         for start in range(0, len(rotations), max(1, batch)):
             grids = self.splat(cloud, rotations[start : start + batch], fixed.moving_shape)
-            overlaps = self.overlaps(grids, fixed.overlap)
+            overlaps = self.overlaps(grids, fixed.overlap, fixed.overlap_at)
             whitened = self.whiten(self.forward(grids, fixed.shape), fixed.spectrum,
                                    fixed.window, fixed.eps)
             found.append(Found(*self.peaks(self.inverse(whitened, fixed.shape),
@@ -173,16 +173,24 @@ class ArrayBackend(Backend):
             return (self.to_numpy(values).astype(np.float64),
                     self.to_numpy(index).astype(np.int64), self.to_numpy(neighbours))
 
-    def overlaps(self, grids: Array, overlap: Array) -> NDArray[np.float64]:
-        """``<g, overlap> / |g|`` of each grid ``g`` of ``grids`` (0 for an empty grid;
-        0 throughout for an empty ``overlap``), on the host: (B,)."""
+    def overlaps(self, grids: Array, overlap: Array, at: NDArray[np.int64]) -> NDArray[np.float64]:
+        """``<g, overlap> / |g|`` of each grid ``g`` of ``grids`` over the cells it shares
+        with ``overlap``, its corner at ``at`` there (0 for an empty grid; 0 throughout for
+        an empty ``overlap``), on the host: (B,)."""
         xp = self.xp
         if not overlap.size:
             return np.zeros(len(grids))
+        shape = np.asarray(grids.shape[1:])
+        lo, hi = np.maximum(-at, 0), np.minimum(shape, np.asarray(overlap.shape) - at)
         with self._on_device():
             flat = grids.reshape(len(grids), -1).astype(xp.float64)
-            inner = flat @ overlap.reshape(-1)
             norm = xp.sqrt(xp.sum(flat * flat, axis=1))
+            inner = xp.zeros(len(grids))
+            if np.all(hi > lo):
+                mine = tuple(slice(a, b) for a, b in zip(lo, hi, strict=True))
+                theirs = tuple(slice(a + c, b + c) for a, b, c in zip(lo, hi, at, strict=True))
+                shared = grids[(slice(None), *mine)].reshape(len(grids), -1)
+                inner = shared.astype(xp.float64) @ overlap[theirs].reshape(-1)
             return self.to_numpy(xp.where(norm > 0, inner / xp.where(norm > 0, norm, 1.0), 0.0))
 
 

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..spectra.correlation_loop import Splat
+
 __all__ = ["TurnedCloud", "WEIGHTINGS"]
 
 #: How points fill a grid (:func:`o3d_spectral.spectra.grid.splat`'s modes).
@@ -68,3 +70,12 @@ class TurnedCloud:
     def culled(self) -> bool:
         """Whether only the points facing :attr:`viewpoint` are splatted."""
         return self.viewpoint is not None
+
+    @property
+    def splat(self) -> Splat:
+        """The compiled loop's arguments for this cloud (the points and offset stand in
+        for the normals and viewpoint of a cloud that is not culled)."""
+        normals = self.normals if self.culled else self.points
+        viewpoint = self.viewpoint if self.culled else self.offset
+        return Splat(self.points, self.offset, normals, viewpoint, self.culled, self.two_sided,
+                     self.min_facing, self.weighting == "trilinear", self.weighting == "binary")

@@ -142,8 +142,8 @@ def placed_in(
     correlation = BatchedCorrelation(
         grid.block(block), box.shape, shape=grid.fft_shape(block, box, moving.radius),
         sigma=grid.peak_width, backend=stepper.backend,
-        searched=grid.searched(block, box, moving.radius), overlap=grid.block(box),
-        spectrum=grid.spectrum(block, box, moving.radius),
+        searched=grid.searched(block, box, moving.radius), overlap=grid.values,
+        overlap_at=box.offset - grid.box.offset, spectrum=grid.spectrum(block, box, moving.radius),
     )
     peaks = correlation.peaks(turned_cloud(stepper, moving, factor), rotations, workers)
     shifts = block.offset - box.offset + peaks.shifts + peaks.fractions  # voxels

@@ -6,6 +6,14 @@
 CACHED_PLANS = 8
 
 
+# -- spectra.correlation_loop: the compiled correlation's workspaces ----------------------
+
+#: Workspace sizes a thread keeps: one search correlates on a few grids (the dense
+#: search's coarse and fine ones, the placements', the climbs' windows), each at one
+#: batch size.
+WORKSPACES = 6
+
+
 # -- spectra.harmonic_kernels: the compiled sum of harmonics -------------------------------
 
 #: Directions whose harmonics :func:`harmonic_sums` carries through the recurrence
@@ -24,6 +32,13 @@ SHELL_SPAN = 20
 SHELL_BANDWIDTH = 24
 #: Radial step between shells, in frequency samples.
 SHELL_STEP = 2
+
+
+# -- spectra.translation: the phase correlation -------------------------------------------
+
+#: Cross-power terms under this share of the largest (the zero frequency's) are not
+#: whitened: they carry no phase, only rounding (single precision's is about 6e-8).
+WHITENING_EPS = 1e-6
 
 
 # -- spectra.target_grid: the fixed cloud's grid -------------------------------------------

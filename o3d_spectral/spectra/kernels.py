@@ -196,8 +196,8 @@ def correlation_peaks_into(
     values: NDArray, index: NDArray, neighbours: NDArray, overlaps: NDArray, points: NDArray,
     rotations: NDArray, offset: NDArray, normals: NDArray, viewpoint: NDArray, culled: bool,
     two_sided: bool, min_facing: int, trilinear: bool, binary: bool, spectrum: NDArray,
-    window: NDArray, eps: float, searched: NDArray, overlap: NDArray, grids: NDArray,
-    spectra: NDArray, correlations: NDArray,
+    window: NDArray, eps: float, searched: NDArray, overlap: NDArray, overlap_at: NDArray,
+    grids: NDArray, spectra: NDArray, correlations: NDArray,
 ) -> None:
     """The phase-correlation peak of a cloud turned by each of a stack of rotations
     against one fixed spectrum (eqs. cross_power_spectrum and fourier_shift_solution), a
@@ -209,7 +209,8 @@ def correlation_peaks_into(
     ``spectrum`` (:func:`whitened_into`), transformed back, and each grid's largest value
     within ``searched`` and its flat index (the first of equals in C order) read, with
     its six neighbours (for a sub-voxel fit) and the moving grid's inner product with
-    ``overlap``: the same values, to the bit, as those steps run one by one from NumPy.
+    ``overlap`` where it lies in it: the same values, to the bit, as those steps run one
+    by one from NumPy.
     The transforms are pocketfft's, compiled in through rocket-fft, in place in the
     workspaces: nothing is allocated.
 
@@ -223,7 +224,8 @@ def correlation_peaks_into(
         (wrapping around the FFT grid).
     overlaps : ndarray, shape (K,), float64
         Filled: ``<g, overlap> / |g|`` of each turned moving grid ``g`` (0 for an empty
-        grid); left as it is when ``overlap`` is empty.
+        grid), ``g``'s corner at ``overlap_at`` in ``overlap``; left as it is when
+        ``overlap`` is empty.
     points, rotations, offset, normals, viewpoint, culled, two_sided, min_facing, \
 trilinear, binary
         As for :func:`turned_splat_into`; ``rotations`` (K, 3, 3).
@@ -234,8 +236,11 @@ trilinear, binary
         As for :func:`whitened`.
     searched : ndarray, shape (3,), int64
         The peak is sought at indices below these per axis (the FFT grid's shape: all).
-    overlap : ndarray, shape (mx, my, mz) or empty, float64
-        A grid the moving grids are compared with before any shift.
+    overlap : ndarray, 3D or empty, float64
+        A grid the moving grids are compared with before any shift, over the cells they
+        share (the rest of each moving grid counts in its norm only).
+    overlap_at : ndarray, shape (3,), int64
+        The moving grid's corner in ``overlap``, cells (any, negative too).
     grids : ndarray, shape (B, mx, my, mz), float32
     spectra : ndarray, shape (B, nx, ny, nz // 2 + 1), complex64
     correlations : ndarray, shape (B, nx, ny, nz), float32
@@ -263,7 +268,7 @@ trilinear, binary
             k = start + b
             values[k], index[k] = _peak_into(grid[b], searched, neighbours[k])
             if overlap.size:
-                overlaps[k] = _normalised_inner(block[b], overlap)
+                overlaps[k] = _normalised_inner(block[b], overlap, overlap_at)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -293,27 +298,35 @@ def _peak_into(grid: NDArray, searched: NDArray, neighbours: NDArray) -> tuple[f
 
 
 @numba.njit(cache=True, nogil=True)
-def _normalised_inner(grid: NDArray, other: NDArray) -> float:
-    """``<grid, other> / |grid|`` of two grids of one shape (0 for an empty ``grid``),
-    summed in double precision."""
-    inner, norm = 0.0, 0.0
-    g, o = grid.ravel(), other.ravel()
+def _normalised_inner(grid: NDArray, other: NDArray, at: NDArray) -> float:
+    """``<grid, other> / |grid|`` (0 for an empty ``grid``) over the cells the two share,
+    ``grid``'s corner at ``at`` in ``other``, summed in double precision in C order."""
+    norm = 0.0
+    g = grid.ravel()
     for i in range(g.size):
         value = np.float64(g[i])
-        inner += value * o[i]
         norm += value * value
-    return inner / np.sqrt(norm) if norm > 0.0 else 0.0
+    if not norm > 0.0:
+        return 0.0
+    ax, ay, az = at[0], at[1], at[2]
+    inner = 0.0
+    for x in range(max(-ax, 0), min(grid.shape[0], other.shape[0] - ax)):
+        for y in range(max(-ay, 0), min(grid.shape[1], other.shape[1] - ay)):
+            for z in range(max(-az, 0), min(grid.shape[2], other.shape[2] - az)):
+                inner += np.float64(grid[x, y, z]) * other[x + ax, y + ay, z + az]
+    return inner / np.sqrt(norm)
 
 
 def compile_all() -> None:
     """Compile (or load from the cache) every kernel for the argument types the package
-    passes: C-contiguous arrays (grids of single or double precision, the correlation's
-    cached window read only), each combination of the flags."""
+    passes: C-contiguous arrays (the fixed grid's of double precision; the correlation
+    loop's of single precision, its inputs read only, as
+    :func:`o3d_spectral.spectra.correlation_loop.correlation_peaks` passes them), each
+    combination of the flags."""
     u, weights = np.zeros((1, 3)), np.ones(1)
-    for grid in (np.zeros((2, 2, 2)), np.zeros((2, 2, 2), dtype=np.float32)):
-        for trilinear in (False, True):
-            for binary in (False, True):
-                splat_into(grid, u, weights, trilinear, binary)
+    for trilinear in (False, True):
+        for binary in (False, True):
+            splat_into(np.zeros((2, 2, 2)), u, weights, trilinear, binary)
     harmonic_sums(np.array([[0.0, 0.0, 1.0]]), weights, 2)
     eye, origin, normals = np.eye(3), np.zeros(3), np.zeros((1, 3))
     cells = np.zeros((1, 2, 2, 2), dtype=np.float32)  # the batched correlation's grids
@@ -324,16 +337,13 @@ def compile_all() -> None:
                                   0, trilinear, binary)
     spectra = np.ones((1, 2, 2, 2), dtype=np.complex64).view(np.float32)
     whitened_into(spectra, spectra[0], cells[0], np.float32(1e-6), spectra.copy())
-    window = np.ones((2, 2, 2), dtype=np.float32)
-    window.flags.writeable = False  # as the correlation's cached Gaussian window
-    correlation_peaks_into(np.zeros(1), np.zeros(1, dtype=np.int64),
-                           np.zeros((1, 3, 2), dtype=np.float32), np.zeros(1), u, eye[None],
-                           origin, normals, origin, False, False, 0, True, False,
-                           np.ones((2, 2, 2), dtype=np.complex64), window, np.float32(1e-6),
-                           np.full(3, 2, dtype=np.int64), np.zeros((2, 2, 2)), cells,
-                           np.ones((1, 2, 2, 2), dtype=np.complex64),
-                           np.ones((1, 2, 2, 2), dtype=np.float32))
+    from .correlation_loop import Splat, correlation_peaks  # as every caller calls it
 
+    correlation_peaks(Splat.unculled(u, "trilinear"), eye[None],
+                      np.ones((2, 2, 2), dtype=np.complex64),
+                      np.ones((2, 2, 2), dtype=np.float32), 1e-6, (2, 2, 2),
+                      np.zeros((2, 2, 2)), np.zeros(3, dtype=np.int64), batch=1,
+                      moving_shape=(2, 2, 2), shape=(2, 2, 2))
 
 if __name__ == "__main__":
     import time

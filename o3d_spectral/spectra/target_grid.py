@@ -21,10 +21,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..io.cloud import extent
 from ..io.rows import bounds
-from .constants import CACHED_COARSE_GRIDS, CACHED_SPECTRA, SCENE_RATIO
+from .constants import CACHED_COARSE_GRIDS, CACHED_SPECTRA, SCENE_RATIO, WHITENING_EPS
+from .correlation_loop import Splat, correlation_peaks
 from .fft import RealFFT3, fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
-from .translation import cross_power_peak
+from .translation import gaussian_window, peak_scale, peak_shifts
 
 __all__ = ["Placement", "TargetGrid"]
 
@@ -195,41 +196,25 @@ class TargetGrid:
     ) -> Placement:
         """Voxelise ``moved`` (points of a moving cloud of ``radius``, centroid at
         ``centre``, metres) on the shared lattice and phase-correlate it with the fixed
-        grid, near ``around`` when given (eq. fourier_shift_solution)."""
+        grid, near ``around`` when given (eq. fourier_shift_solution), on this thread's
+        compiled loop (:func:`o3d_spectral.spectra.correlation_loop.correlation_peaks`,
+        outside the GIL)."""
         box = self.moving_box(radius, centre)
         fixed = self.search_box(radius, around)
-        fft, spectrum = self._fft(fixed, box, radius)
-        grid = self._unit_grid(moved, box, np.empty(box.shape, fft.dtype))
+        shape = self.fft_shape(fixed, box, radius)
         searched = self.searched(fixed, box, radius)
-        bounds = ({"positive_below": fixed.shape} if searched is None
-                  else {"searched": searched})
-        peak = cross_power_peak(
-            fft.forward_padded(grid), spectrum, fft, sigma=self.peak_width, **bounds
+        points = np.ascontiguousarray((moved - box.corner) / self.voxel_size)
+        values, index, neighbours, overlaps = correlation_peaks(
+            Splat.unculled(points, self.weighting), np.eye(3)[None],
+            self.spectrum(fixed, box, radius), gaussian_window(shape, self.peak_width, np.float32),
+            WHITENING_EPS, searched or shape, self._grid, box.offset - self.box.offset, batch=1,
+            moving_shape=box.shape, shape=shape,
         )
-        shift = (fixed.offset - box.offset + peak.shift) * self.voxel_size
-        return Placement(shift, peak.peak, self._cost(grid, box))
-
-    def _unit_grid(
-        self, moved: NDArray[np.float64], box: Box, out: NDArray[np.floating]
-    ) -> NDArray[np.floating]:
-        """``out`` (of ``box.shape``) filled with the moving points splatted on ``box``
-        and scaled to unit norm."""
-        splat(moved, box, mode=self.weighting, out=out)
-        out /= np.linalg.norm(out)
-        return out
-
-    def _cost(self, grid: NDArray[np.floating], box: Box) -> float:
-        """``J_t = 1/2 ||g - f||^2`` of unit-norm grids on the shared lattice; ``grid`` is
-        the moving grid on ``box``, possibly zero-padded beyond it."""
-        grid = grid[: box.shape[0], : box.shape[1], : box.shape[2]]
-        q = box.offset - self.box.offset
-        lo, hi = np.maximum(q, 0), np.minimum(q + np.asarray(box.shape), self.box.shape)
-        overlap = 0.0
-        if np.all(hi > lo):
-            g = self._grid[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
-            a, b = lo - q, hi - q
-            overlap = float(np.sum(g * grid[a[0] : b[0], a[1] : b[1], a[2] : b[2]]))
-        return 1.0 - overlap  # 1/2 (|g|^2 + |f|^2) - <g, f> with |g| = |f| = 1
+        shifts, fractions = peak_shifts(index, values, neighbours, shape,
+                                        positive_below=fixed.shape, searched=searched)
+        shift = (fixed.offset - box.offset + shifts[0] + fractions[0]) * self.voxel_size
+        peak = float(values[0]) * peak_scale(shape, self.peak_width, np.float32)
+        return Placement(shift, peak, 1.0 - float(overlaps[0]))
 
     def block(self, box: Box) -> NDArray[np.float64]:
         """The unit-norm fixed grid on ``box`` (zero outside the fixed cloud's box; the

@@ -20,11 +20,12 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import WHITENING_EPS
 from .fft import RealFFT3
 
 __all__ = [
     "PeakEstimate", "gaussian_window", "peak_scale", "phase_correlation", "cross_power_peak",
-    "subvoxel_offsets",
+    "peak_shifts", "subvoxel_offsets",
 ]
 
 
@@ -125,13 +126,56 @@ def subvoxel_offsets(
     return np.where(curvature < 0, offsets, 0.0).astype(np.float64)
 
 
+def peak_shifts(
+    index: NDArray[np.int64], values: NDArray[np.floating], neighbours: NDArray[np.floating],
+    shape: tuple[int, int, int], *, positive_below: tuple[int, int, int] | None = None,
+    searched: tuple[int, int, int] | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The shifts (whole voxels, and their sub-voxel parts) that correlation peaks found
+    at flat ``index`` in FFT grids of ``shape`` stand for, as :func:`cross_power_peak`
+    reads them.
+
+    Parameters
+    ----------
+    index : ndarray, shape (K,)
+        Each peak's flat index.
+    values : ndarray, shape (K,)
+        Each peak's value; the sub-voxel fit runs in single precision, the correlation's.
+    neighbours : ndarray, shape (K, 3, 2)
+        The correlation one voxel before and after each peak along each axis.
+    shape : tuple of 3 int
+        The FFT grid.
+    positive_below, searched : tuple of 3 int, optional
+        As for :func:`cross_power_peak`: indices at or beyond ``positive_below`` are
+        negative shifts (half the grid when neither is given); within ``searched`` every
+        index is a positive shift, and there is no fit along an axis where a neighbour
+        lies outside it.
+
+    Returns
+    -------
+    shifts : ndarray, shape (K, 3), int64
+    fractions : ndarray, shape (K, 3)
+        In [-0.5, 0.5] voxels (:func:`subvoxel_offsets`).
+    """
+    at = np.stack(np.unravel_index(np.asarray(index), shape), axis=-1).reshape(-1, 3)
+    peak = np.asarray(values).astype(np.float32)
+    fractions = np.stack([subvoxel_offsets(neighbours[:, a, 0], peak, neighbours[:, a, 1])
+                          for a in range(3)], axis=-1).reshape(-1, 3)
+    if searched is not None:
+        fractions[(at == 0) | (at >= np.asarray(searched) - 1)] = 0.0
+        return at.astype(np.int64), fractions
+    size = np.asarray(shape)
+    limit = (size + 1) // 2 if positive_below is None else np.asarray(positive_below)
+    return np.where(at >= limit, at - size, at).astype(np.int64), fractions
+
+
 def cross_power_peak(
     F: NDArray[np.complex128],
     G: NDArray[np.complex128],
     fft: RealFFT3,
     *,
     sigma: float = 1.0,
-    eps: float = 1e-6,
+    eps: float = WHITENING_EPS,
     positive_below: tuple[int, int, int] | None = None,
     searched: tuple[int, int, int] | None = None,
 ) -> PeakEstimate:
