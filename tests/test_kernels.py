@@ -53,8 +53,10 @@ def test_compiling_ahead_covers_the_types_the_correlation_passes():
 def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
     """``correlation_peaks_into`` gives, to the bit, the peaks of its steps run one by one
     from NumPy (the compiled splat, pocketfft through ``scipy.fft``, the compiled
-    whitening), whatever the batch: each peak within the searched block, its neighbours
-    (wrapping around), and each moving grid's overlap with a fixed one in double precision."""
+    whitening; within a searched block, the inverse transform of only the lines it
+    needs), whatever the batch: each peak within the searched block, its neighbours
+    (wrapping around, 0 outside the block), and each moving grid's overlap with a fixed
+    one in double precision."""
     import numpy as np
     import scipy.fft
 
@@ -91,16 +93,25 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
     spectra = padded_forward(grids, shape).astype(np.complex64)
     reals = spectra.view(np.float32)
     whitened_into(reals, spectrum.view(np.float32), window, eps, reals)
-    scipy.fft.ifftn(spectra, axes=(1, 2), overwrite_x=True)
-    correlations = scipy.fft.irfft(spectra, n=shape[2], axis=-1)
+    if cropped:  # only the lines the searched block needs, one axis at a time
+        lines = scipy.fft.ifft(scipy.fft.ifft(spectra, axis=1)[:, : searched[0]], axis=2)
+        correlations = np.zeros((len(rotations), *shape), dtype=np.float32)
+        correlations[:, : searched[0], : searched[1]] = scipy.fft.irfft(
+            lines[:, :, : searched[1]], n=shape[2], axis=-1)
+    else:
+        scipy.fft.ifftn(spectra, axes=(1, 2), overwrite_x=True)
+        correlations = scipy.fft.irfft(spectra, n=shape[2], axis=-1)
     block = correlations[:, : searched[0], : searched[1], : searched[2]]
     at = np.stack(np.unravel_index(np.argmax(block.reshape(len(rotations), -1), axis=1),
                                    block.shape[1:]), axis=-1)
     expected_values = block.reshape(len(rotations), -1).max(axis=1)
     expected_index = np.ravel_multi_index(at.T, shape)
+    inside = np.zeros(correlations.shape, dtype=bool)
+    inside[:, : searched[0], : searched[1], : searched[2]] = True
     expected_neighbours = np.stack([np.stack(
-        [np.roll(correlations, -step, axis=1 + axis)[(np.arange(len(rotations)), *at.T)]
-         for step in (-1, 1)], axis=-1) for axis in range(3)], axis=1)
+        [np.roll(np.where(inside, correlations, 0), -step, axis=1 + axis)[
+            (np.arange(len(rotations)), *at.T)] for step in (-1, 1)], axis=-1)
+        for axis in range(3)], axis=1)
     flat = grids.reshape(len(rotations), -1).astype(np.float64)
     expected_overlaps = flat @ on_moving.ravel() / np.linalg.norm(flat, axis=1)
     for batch in (1, 3, 7, 50):  # workspaces left dirty by the batch before

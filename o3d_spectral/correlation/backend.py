@@ -84,7 +84,7 @@ class Found(NamedTuple):
         Its flat index in the FFT grid (the first of equals in C order).
     neighbours : ndarray, shape (K, 3, 2), float32
         The correlation one voxel before and after the peak along each axis, wrapping
-        around the FFT grid.
+        around the FFT grid (0 outside :attr:`Fixed.searched`).
     overlaps : ndarray, shape (K,), float64
         ``<g, overlap> / |g|`` of the turned moving grid ``g`` and :attr:`Fixed.overlap`
         (0 for an empty grid; 0 throughout where no overlap is asked).

@@ -167,8 +167,9 @@ class ArrayBackend(Backend):
                 for side, step in enumerate((-1, 1)):
                     beside = at.copy()
                     beside[:, axis] = (beside[:, axis] + step) % shape[axis]
-                    neighbours[:, axis, side] = grids[batch, beside[:, 0], beside[:, 1],
-                                                      beside[:, 2]]
+                    inside = xp.all(beside < xp.asarray(searched), axis=1)
+                    neighbours[:, axis, side] = xp.where(
+                        inside, grids[batch, beside[:, 0], beside[:, 1], beside[:, 2]], 0.0)
             index = (at[:, 0] * shape[1] + at[:, 1]) * shape[2] + at[:, 2]
             return (self.to_numpy(values).astype(np.float64),
                     self.to_numpy(index).astype(np.int64), self.to_numpy(neighbours))

@@ -206,7 +206,9 @@ def correlation_peaks_into(
     Each batch is turned and splatted (:func:`turned_splat_into`), transformed zero-padded
     to the FFT grid along the lines the moving grid reaches
     (:func:`o3d_spectral.spectra.fft.padded_forward`'s order of axes), whitened against
-    ``spectrum`` (:func:`whitened_into`), transformed back, and each grid's largest value
+    ``spectrum`` (:func:`whitened_into`), transformed back (only the lines the searched
+    block needs, as :func:`o3d_spectral.spectra.fft.cropped_inverse`, where it is smaller
+    than the grid), and each grid's largest value
     within ``searched`` and its flat index (the first of equals in C order) read, with
     its six neighbours (for a sub-voxel fit) and the moving grid's inner product with
     ``overlap`` where it lies in it: the same values, to the bit, as those steps run one
@@ -221,7 +223,7 @@ def correlation_peaks_into(
         Filled: each rotation's peak (unscaled) and its flat index in the FFT grid.
     neighbours : ndarray, shape (K, 3, 2), float32
         Filled: the correlation one voxel before and after the peak along each axis
-        (wrapping around the FFT grid).
+        (wrapping around the FFT grid; 0 outside the searched block).
     overlaps : ndarray, shape (K,), float64
         Filled: ``<g, overlap> / |g|`` of each turned moving grid ``g`` (0 for an empty
         grid), ``g``'s corner at ``overlap_at`` in ``overlap``; left as it is when
@@ -262,8 +264,15 @@ trilinear, binary
         scipy.fft.fft(out, axis=1, overwrite_x=True)
         reals = out.view(np.float32)
         whitened_into(reals, fixed, window, eps, reals)
-        scipy.fft.ifftn(out, axes=(1, 2), overwrite_x=True)
-        grid = np.fft.irfft(out, n=nz, axis=-1, out=correlations[:count])
+        sx, sy = searched[0], searched[1]
+        if sx < out.shape[1] or sy < out.shape[2]:  # only the lines the block needs
+            scipy.fft.ifft(out, axis=1, overwrite_x=True)
+            scipy.fft.ifft(out[:, :sx], axis=2, overwrite_x=True)
+            np.fft.irfft(out[:, :sx, :sy], n=nz, axis=-1, out=correlations[:count, :sx, :sy])
+        else:
+            scipy.fft.ifftn(out, axes=(1, 2), overwrite_x=True)
+            np.fft.irfft(out, n=nz, axis=-1, out=correlations[:count])
+        grid = correlations[:count]
         for b in range(count):
             k = start + b
             values[k], index[k] = _peak_into(grid[b], searched, neighbours[k])
@@ -275,7 +284,8 @@ trilinear, binary
 def _peak_into(grid: NDArray, searched: NDArray, neighbours: NDArray) -> tuple[float, int]:
     """The largest value of ``grid`` (3D) at indices below ``searched`` and its flat
     index (the first of equals in C order); ``neighbours`` (3, 2) filled with the values
-    one voxel before and after it along each axis, wrapping around."""
+    one voxel before and after it along each axis, wrapping around (0 outside the
+    searched block: the grid may be computed only within it)."""
     best, at = grid[0, 0, 0], (0, 0, 0)
     for i in range(searched[0]):
         for j in range(searched[1]):
@@ -293,7 +303,8 @@ def _peak_into(grid: NDArray, searched: NDArray, neighbours: NDArray) -> tuple[f
                 j = (j + step) % shape[1]
             else:
                 k = (k + step) % shape[2]
-            neighbours[axis, side] = grid[i, j, k]
+            inside = i < searched[0] and j < searched[1] and k < searched[2]
+            neighbours[axis, side] = grid[i, j, k] if inside else 0.0
     return best, (at[0] * shape[1] + at[1]) * shape[2] + at[2]
 
 
