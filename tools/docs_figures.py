@@ -445,24 +445,36 @@ def speed() -> str:
 
 
 def speed_change() -> str:
-    """The speed bench at two commits run one after the other: each group's median ratio
-    to the lean FPFH-RANSAC and both methods' median seconds, before and now."""
-    now = {r["group"]: r for r in read_csv("speed")}
+    """The speed bench at two commits run one after the other, one thread: each group's
+    median ratio to the lean FPFH-RANSAC and both methods' median seconds, before and
+    now."""
+    return _change("speed_before", "speed", "one thread")
+
+
+def cores_change() -> str:
+    """:func:`speed_change` for the bench on every core."""
+    return _change("speed_all_cores_before", "speed_all_cores", "every core")
+
+
+def _change(before_source: str, now_source: str, threads: str) -> str:
+    """Each group's median ratio and both methods' median seconds in two runs of the speed
+    bench (sources ``before_source`` and ``now_source``), before and now."""
+    now = {r["group"]: r for r in read_csv(now_source)}
     lines = []
-    for before in read_csv("speed_before"):
+    for before in read_csv(before_source):
         after = now[before["group"]]
         pair = (before, after)
         lines.append([before["group"], *(f"{float(r['ratio_median']):.2f}" for r in pair),
                       *(f"{float(r[k]):.3f}" for k in ("spectral_global_median_s",
                                                         "fpfh_ransac_lean_median_s")
                         for r in pair)])
-    b, a = sources()["speed_before"]["commit"], sources()["speed"]["commit"]
+    b, a = sources()[before_source]["commit"], sources()[now_source]["commit"]
     return "\n".join([
         table(["group", f"ratio median, {b}", f"ratio median, {a}", f"spectral s, {b}",
                f"spectral s, {a}", f"lean FPFH s, {b}", f"lean FPFH s, {a}"], lines),
         "",
-        provenance("speed_before", "speed") + " The two runs one after the other on the "
-        "same instances, one thread; both methods' times drift together between runs by "
+        provenance(before_source, now_source) + f" The two runs in the same session on the "
+        f"same instances, {threads}; both methods' times drift together between runs by "
         "up to a quarter on this virtual machine.",
     ])
 
@@ -1051,6 +1063,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "density": density,
     "speed": speed,
     "speed-change": speed_change,
+    "cores-change": cores_change,
     "cores": cores,
     "speed-stages": speed_stages,
     "settings": settings,

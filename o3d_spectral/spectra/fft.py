@@ -89,8 +89,8 @@ class RealFFT3:
         self.spectrum_shape = (*self.shape[:2], self.shape[2] // 2 + 1)
         self.threads = threads
         self._fftw = backend(self.shape, planning) == "pyfftw"
-        # pocketfft on one thread transforms only the lines a block reaches; FFTW's plans,
-        # and several workers, take the grid whole
+        # pocketfft on one thread transforms only the lines a cropped result needs;
+        # FFTW's plans, and several workers, take the grid whole
         self._pruned = not self._fftw and threads == 1
         if self._fftw:
             real = pyfftw.empty_aligned(self.shape, dtype=self.dtype)
@@ -112,15 +112,6 @@ class RealFFT3:
         if not self._fftw:
             return scipy.fft.irfftn(spectrum, s=self.shape, workers=self.threads)
         return self._inverse(spectrum)
-
-    def forward_padded(self, block: NDArray[np.floating]) -> NDArray[np.complexfloating]:
-        """Spectrum of ``block`` zero-padded from its corner to :attr:`shape`
-        (:func:`padded_forward`; FFTW transforms the padded grid whole)."""
-        if not self._pruned:
-            grid = np.zeros(self.shape, dtype=self.dtype)
-            grid[: block.shape[0], : block.shape[1], : block.shape[2]] = block
-            return self.forward(grid)
-        return padded_forward(block.astype(self.dtype, copy=False), self.shape)
 
     def inverse_cropped(
         self, spectrum: NDArray[np.complexfloating], size: tuple[int, int, int]

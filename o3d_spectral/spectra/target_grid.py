@@ -23,7 +23,7 @@ from ..io.cloud import extent
 from ..io.rows import bounds
 from .constants import CACHED_COARSE_GRIDS, CACHED_SPECTRA, SCENE_RATIO, WHITENING_EPS
 from .correlation_loop import Splat, correlation_peaks
-from .fft import RealFFT3, fft_plan, next_fast_len
+from .fft import fft_plan, next_fast_len
 from .grid import Box, Lattice, check_memory, splat
 from .translation import gaussian_window, peak_scale, peak_shifts
 
@@ -236,30 +236,22 @@ class TargetGrid:
         """The half spectrum of the block ``fixed`` on the FFT grid on which ``moving``
         (the grid of a cloud of ``radius``, metres) is correlated with it
         (:meth:`fft_shape`), single precision, read only: the one every correlation
-        against that block shares (cached)."""
-        spectrum = self._fft(fixed, moving, radius)[1].view()
-        spectrum.flags.writeable = False
-        return spectrum
-
-    def _fft(
-        self, fixed: Box, moving: Box, radius: float
-    ) -> tuple[RealFFT3, NDArray[np.complexfloating]]:
-        """The FFT plan for correlating ``moving`` (of a cloud of ``radius``) with
-        ``fixed``, and the fixed block's spectrum (cached: a few blocks and shapes recur
-        over a registration)."""
+        against that block shares (cached: a few blocks and shapes recur over a
+        registration)."""
         shape = self.fft_shape(fixed, moving, radius)
         key = (tuple(fixed.offset), fixed.shape, shape)
-        fft = fft_plan(shape, precision=PRECISION)  # this thread's plan
         with self._lock:
             spectrum = self._spectra.get(key)
         if spectrum is None:
             check_memory(shape, self.max_memory, "voxel grids")
+            fft = fft_plan(shape, precision=PRECISION)  # this thread's plan
             padded = np.zeros(shape, dtype=fft.dtype)
             f = fixed.shape
             padded[: f[0], : f[1], : f[2]] = self.block(fixed)
             spectrum = np.array(fft.forward(padded))
+            spectrum.flags.writeable = False
             with self._lock:
                 if len(self._spectra) >= CACHED_SPECTRA:
                     del self._spectra[next(iter(self._spectra))]
                 self._spectra[key] = spectrum
-        return fft, spectrum
+        return spectrum
