@@ -16,10 +16,9 @@ read each grid's peak. A :class:`Backend` runs that pipeline on its arrays
   (NumPy, CuPy) over whole stacks in plain array operations: the reference the compiled
   loops are tested against, and the path a GPU library runs.
 
-All grids are single precision, as the search's other phase correlations: it halves the
-transforms' time, and the peak heights agree with
-:meth:`o3d_spectral.SpectralStepper.locate`'s to about 1e-7 (``tests/test_ascent.py``
-holds them to 1e-5).
+All grids are single precision, as the law's phase correlations (which run the same
+compiled loop for one grid): it halves the transforms' time, and the peak heights agree
+with the paper's steps in double precision to 1e-5 (``tests/test_target_grid.py``).
 """
 
 from __future__ import annotations
