@@ -12,6 +12,11 @@ CACHED_PLANS = 8
 #: search's coarse and fine ones, the placements', the climbs' windows), each at one
 #: batch size.
 WORKSPACES = 6
+#: Bytes of workspaces a thread keeps between calls (beyond them the least recently used
+#: are dropped, never the one in use): the search's threads outlive a call, and on many
+#: cores a scene's whole-grid workspaces (tens of MB each) would otherwise stay with
+#: every thread.
+WORKSPACE_BYTES = 2**28
 
 
 # -- spectra.harmonic_kernels: the compiled sum of harmonics -------------------------------

@@ -23,7 +23,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from .constants import WORKSPACES
+from .constants import WORKSPACE_BYTES, WORKSPACES
 
 __all__ = ["Splat", "correlation_peaks", "workspaces"]
 
@@ -76,7 +76,7 @@ def workspaces(
     """This thread's workspaces for batches of ``batch`` moving grids of
     ``moving_shape`` correlated on an FFT grid of ``shape``: the grids, their half spectra
     and their correlations, kept for its next calls (the last :data:`WORKSPACES`
-    sizes)."""
+    sizes, at most :data:`WORKSPACE_BYTES` together; the one asked for always)."""
     kept = getattr(_kept, "arrays", None)
     if kept is None:
         kept = _kept.arrays = OrderedDict()
@@ -88,9 +88,14 @@ def workspaces(
                   np.empty((batch, nx, ny, nz // 2 + 1), dtype=np.complex64),
                   np.empty((batch, nx, ny, nz), dtype=np.float32))
     kept[key] = arrays
-    if len(kept) > WORKSPACES:
+    while len(kept) > 1 and (len(kept) > WORKSPACES or _bytes(kept) > WORKSPACE_BYTES):
         kept.popitem(last=False)
     return arrays
+
+
+def _bytes(kept: OrderedDict) -> int:
+    """The bytes of every workspace in ``kept``."""
+    return sum(array.nbytes for arrays in kept.values() for array in arrays)
 
 
 def correlation_peaks(
