@@ -133,26 +133,45 @@ def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):
 def test_each_thread_keeps_its_workspaces_within_a_count_and_a_size(monkeypatch):
     """A thread gets back the workspaces it used for a size (nothing allocated again),
     keeps at most WORKSPACES sizes and WORKSPACE_BYTES, the size asked for always, and
-    never shares them with another thread."""
+    never shares them with another thread (each check in a fresh thread, which starts
+    with none)."""
     import threading
 
     from o3d_spectral.spectra import correlation_loop as loop
 
-    monkeypatch.setattr(loop, "_kept", threading.local())
-    first = loop.workspaces(2, (4, 4, 4), (8, 8, 8))
-    assert loop.workspaces(2, (4, 4, 4), (8, 8, 8)) is first
-    assert [a.shape for a in first] == [(2, 4, 4, 4), (2, 8, 8, 5), (2, 8, 8, 8)]
-    for n in range(loop.WORKSPACES):
-        loop.workspaces(1, (4, 4, 4), (9 + n, 8, 8))
-    assert loop.workspaces(2, (4, 4, 4), (8, 8, 8)) is not first  # the oldest dropped
-    other = []
-    thread = threading.Thread(target=lambda: other.append(loop.workspaces(2, (4, 4, 4),
-                                                                          (8, 8, 8))))
-    thread.start()
-    thread.join()
-    assert other[0][0] is not loop.workspaces(2, (4, 4, 4), (8, 8, 8))[0]
+    def fresh(check):
+        failed = []
+
+        def run():
+            try:
+                check()
+            except AssertionError as error:
+                failed.append(error)
+
+        thread = threading.Thread(target=run)
+        thread.start()
+        thread.join()
+        if failed:
+            raise failed[0]
+
+    def count():
+        first = loop.workspaces(2, (4, 4, 4), (8, 8, 8))
+        assert loop.workspaces(2, (4, 4, 4), (8, 8, 8)) is first
+        assert [a.shape for a in first] == [(2, 4, 4, 4), (2, 8, 8, 5), (2, 8, 8, 8)]
+        for n in range(loop.WORKSPACES):
+            loop.workspaces(1, (4, 4, 4), (9 + n, 8, 8))
+        assert loop.workspaces(2, (4, 4, 4), (8, 8, 8)) is not first  # the oldest dropped
+
+    def size():
+        small = loop.workspaces(1, (4, 4, 4), (8, 8, 8))
+        huge = loop.workspaces(1, (4, 4, 4), (32, 32, 32))  # over the budget alone: kept
+        assert loop.workspaces(1, (4, 4, 4), (32, 32, 32)) is huge
+        assert loop.workspaces(1, (4, 4, 4), (8, 8, 8)) is not small  # dropped for it
+
+    fresh(count)
+    mine = loop.workspaces(2, (4, 4, 4), (8, 8, 8))
+    theirs = []
+    fresh(lambda: theirs.append(loop.workspaces(2, (4, 4, 4), (8, 8, 8))))
+    assert theirs[0][0] is not mine[0]
     monkeypatch.setattr(loop, "WORKSPACE_BYTES", 10_000)  # about one 8^3 set
-    small = loop.workspaces(1, (4, 4, 4), (8, 8, 8))
-    huge = loop.workspaces(1, (4, 4, 4), (32, 32, 32))  # over the budget alone: kept
-    assert loop.workspaces(1, (4, 4, 4), (32, 32, 32)) is huge
-    assert loop.workspaces(1, (4, 4, 4), (8, 8, 8)) is not small  # dropped for it
+    fresh(size)
