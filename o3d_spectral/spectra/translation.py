@@ -91,21 +91,16 @@ def peak_scale(shape: tuple[int, int, int], sigma: float, dtype: type = np.float
     return float(np.prod(shape)) / float(total)
 
 
-def _subvoxel(
-    values: NDArray[np.float64], index: tuple[int, ...], bounds: NDArray[np.int64] | None = None
-) -> NDArray[np.float64]:
-    """Offset in [-0.5, 0.5] of the peak from ``index`` along each axis (Gaussian fit);
-    none along an axis where a neighbour lies outside ``bounds`` (per axis, when given)."""
-    around = np.empty((3, 3), dtype=values.dtype)
+def _neighbours(values: NDArray[np.floating], index: tuple[int, ...]) -> NDArray[np.floating]:
+    """The values one cell before and after ``index`` along each axis of ``values``
+    (3D), wrapping around: shape (1, 3, 2), as :func:`peak_shifts` reads them."""
+    around = np.empty((1, 3, 2), dtype=values.dtype)
     for axis in range(3):
-        for side, step in enumerate((-1, 0, 1)):
+        for side, step in enumerate((-1, 1)):
             i = list(index)
             i[axis] = (i[axis] + step) % values.shape[axis]
-            around[axis, side] = values[tuple(i)]
-    offsets = subvoxel_offsets(around[:, 0], around[:, 1], around[:, 2])
-    if bounds is not None:
-        offsets[~((0 < np.asarray(index)) & (np.asarray(index) < np.asarray(bounds) - 1))] = 0.0
-    return offsets
+            around[0, axis, side] = values[tuple(i)]
+    return around
 
 
 def subvoxel_offsets(
@@ -140,7 +135,7 @@ def peak_shifts(
     index : ndarray, shape (K,)
         Each peak's flat index.
     values : ndarray, shape (K,)
-        Each peak's value; the sub-voxel fit runs in single precision, the correlation's.
+        Each peak's value; the sub-voxel fit runs in the neighbours' precision.
     neighbours : ndarray, shape (K, 3, 2)
         The correlation one voxel before and after each peak along each axis.
     shape : tuple of 3 int
@@ -158,7 +153,7 @@ def peak_shifts(
         In [-0.5, 0.5] voxels (:func:`subvoxel_offsets`).
     """
     at = np.stack(np.unravel_index(np.asarray(index), shape), axis=-1).reshape(-1, 3)
-    peak = np.asarray(values).astype(np.float32)
+    peak = np.asarray(values).astype(neighbours.dtype)
     fractions = np.stack([subvoxel_offsets(neighbours[:, a, 0], peak, neighbours[:, a, 1])
                           for a in range(3)], axis=-1).reshape(-1, 3)
     if searched is not None:
@@ -210,20 +205,18 @@ def cross_power_peak(
         The shift of ``g`` relative to ``f``, voxels.
     """
     cross = _whitened(F, G, fft.shape, sigma, eps)
-    shape = np.asarray(fft.shape)
     if searched is not None:  # only the searched block of the correlation is computed
-        bounds = np.minimum(searched, shape)
-        delta = fft.inverse_cropped(cross, tuple(int(b) for b in bounds))
-        index = np.unravel_index(int(np.argmax(delta)), delta.shape)
-        integer = np.asarray(index)
+        searched = tuple(int(b) for b in np.minimum(searched, fft.shape))
+        delta = fft.inverse_cropped(cross, searched)
     else:
-        bounds = None
         delta = fft.inverse(cross)
-        index = np.unravel_index(int(np.argmax(delta)), delta.shape)
-        limit = (shape + 1) // 2 if positive_below is None else np.asarray(positive_below)
-        integer = np.where(np.asarray(index) >= limit, np.asarray(index) - shape, index)
+    flat = int(np.argmax(delta))
+    index = np.unravel_index(flat, delta.shape)
+    shifts, fractions = peak_shifts(np.array([flat]), delta[index][None],
+                                    _neighbours(delta, index), delta.shape,
+                                    positive_below=positive_below, searched=searched)
     peak = float(_peak_height(delta[index], fft.shape, sigma))
-    return PeakEstimate(integer + _subvoxel(delta, index, bounds), peak)
+    return PeakEstimate(shifts[0] + fractions[0], peak)
 
 
 def _whitened(
