@@ -1,0 +1,183 @@
+"""A furnished room scanned as 3DMatch-style fragments: the registration problem of a user
+who fuses depth frames in short runs and must join the runs without their poses.
+
+:func:`room_meshes` builds a room (floor, four walls, cabinets and frames along the walls,
+tables with bundled models on them). :func:`room_fragments` moves a depth camera round
+the room's centre, looking out at the walls: each fragment fuses a few consecutive depth
+frames (:mod:`o3d_spectral.synthetic.camera`, Kinect-like noise) and is read one point per
+cube of ``spacing``, in the frame of its first camera, without normals, as the
+geometric-registration benchmark's fragments are. Fragments a few turns apart share part
+of the room; :func:`fragment_pairs` lists the pairs that share enough of it, with the
+transformation that takes one onto the other.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial import cKDTree
+
+from o3d_spectral.synthetic.camera import look_at, scan_meshes
+from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.sampling import rigid
+from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
+from o3d_spectral.synthetic.tabletop import table_mesh, tabletop
+
+__all__ = ["RoomOptions", "Fragment", "room_meshes", "room_fragments", "fragment_pairs"]
+
+
+@dataclass(frozen=True)
+class RoomOptions:
+    """The room and the camera's run round it.
+
+    Attributes
+    ----------
+    size : (float, float, float), default (4.6, 3.8, 2.6)
+        The room's length, width and height, metres.
+    cabinets : int, default 6
+        Boxes 0.4-1.4 m wide standing against the walls.
+    frames : int, default 6
+        Thin boxes (pictures, shelves) hung on the walls 0.9-2 m up.
+    tables : int, default 2
+        Tables (0.8 x 0.6 m, 0.75 m high) with three bundled models each.
+    fragments : int, default 12
+        Fragments, their first cameras evenly spread over a full turn.
+    frames_per_fragment : int, default 5
+        Depth frames fused into a fragment.
+    frame_step : float, default 6.0
+        Degrees the camera turns between two frames of a fragment.
+    spacing : float, default 0.01
+        A fragment keeps one point per cube of this many metres.
+    """
+
+    size: tuple[float, float, float] = (4.6, 3.8, 2.6)
+    cabinets: int = 6
+    frames: int = 6
+    tables: int = 2
+    fragments: int = 12
+    frames_per_fragment: int = 5
+    frame_step: float = 6.0
+    spacing: float = 0.01
+
+
+@dataclass(frozen=True)
+class Fragment:
+    """One fragment: ``points`` (N, 3), metres, in the frame of its first camera, whose
+    pose in the room is ``world_from_fragment`` (4, 4)."""
+
+    points: np.ndarray
+    world_from_fragment: np.ndarray
+
+
+def _box(extent: np.ndarray, centre: np.ndarray, yaw: float = 0.0) -> o3d.geometry.TriangleMesh:
+    """A box of ``extent`` (3,) metres centred on ``centre`` (3,), turned ``yaw`` radians
+    about the vertical."""
+    box = o3d.geometry.TriangleMesh.create_box(*extent).translate(-0.5 * np.asarray(extent))
+    c, s = np.cos(yaw), np.sin(yaw)
+    box.transform(rigid(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), centre))
+    return box
+
+
+def _against_wall(
+    size: np.ndarray, depth: float, rng: np.random.Generator,
+) -> tuple[np.ndarray, float]:
+    """A point along a random wall, ``depth`` metres in from it (x, y), and the yaw
+    (radians) that turns a box's x axis along that wall."""
+    wall = int(rng.integers(4))
+    half = size[:2] / 2
+    along = rng.uniform(-0.8, 0.8) * half[(wall + 1) % 2]
+    inward = half[wall % 2] - depth
+    sign = 1.0 if wall < 2 else -1.0
+    xy = np.array([sign * inward, along]) if wall % 2 == 0 else np.array([along, sign * inward])
+    return xy, (np.pi / 2 if wall % 2 == 0 else 0.0)
+
+
+def room_meshes(options: RoomOptions, rng: np.random.Generator) -> list[o3d.geometry.TriangleMesh]:
+    """The room of ``options`` (world frame, metres; the floor is z = 0, the room centred
+    on the vertical axis): floor, walls, cabinets, frames and tables with models."""
+    size = np.asarray(options.size, dtype=float)
+    wall = 0.1
+    meshes = [_box(np.array([size[0], size[1], wall]), np.array([0.0, 0.0, -wall / 2]))]
+    for axis in (0, 1):
+        for sign in (-1.0, 1.0):
+            extent = np.array([wall, size[1], size[2]]) if axis == 0 else np.array(
+                [size[0], wall, size[2]])
+            centre = np.zeros(3)
+            centre[axis], centre[2] = sign * (size[axis] + wall) / 2, size[2] / 2
+            meshes.append(_box(extent, centre))
+    for _ in range(options.cabinets):
+        extent = rng.uniform([0.4, 0.35, 0.4], [1.4, 0.7, 1.9])
+        xy, yaw = _against_wall(size, extent[1] / 2, rng)
+        meshes.append(_box(extent, np.array([*xy, extent[2] / 2]), yaw))
+    for _ in range(options.frames):
+        extent = np.array([rng.uniform(0.3, 1.0), 0.04, rng.uniform(0.2, 0.7)])
+        xy, yaw = _against_wall(size, 0.02, rng)
+        meshes.append(_box(extent, np.array([*xy, rng.uniform(0.9, 2.0)]), yaw))
+    names = model_names()
+    for _ in range(options.tables):
+        angle, reach = rng.uniform(0.0, 2 * np.pi), rng.uniform(1.1, 1.4)
+        placed = rigid(np.eye(3), np.array([reach * np.cos(angle), reach * np.sin(angle), 0.75]))
+        chosen = [str(n) for n in rng.choice(names, size=3, replace=False)]
+        _, _, models = tabletop(chosen, rng, cluster=False)
+        legs = [_box(np.array([0.04, 0.04, 0.72]), np.array([x, y, -0.39]))
+                for x in (-0.36, 0.36) for y in (-0.26, 0.26)]
+        meshes += [m.transform(placed) for m in (table_mesh(), *legs, *models)]
+    return meshes
+
+
+def _camera(degrees: float) -> np.ndarray:
+    """The camera's pose (world from camera) ``degrees`` round its run: 0.4 m from the
+    room's centre, 1.5 m up, looking out and a little down."""
+    a = np.deg2rad(degrees)
+    out = np.array([np.cos(a), np.sin(a), 0.0])
+    eye = 0.4 * out + np.array([0.0, 0.0, 1.5])
+    return look_at(eye, eye + 2.0 * out - np.array([0.0, 0.0, 0.6]))
+
+
+def room_fragments(options: RoomOptions, seed: int) -> list[Fragment]:
+    """The fragments of one room drawn from ``seed`` (:class:`RoomOptions`)."""
+    rng = np.random.default_rng(seed)
+    meshes = room_meshes(options, rng)
+    intrinsics, noise = CameraIntrinsics(), DepthNoise(max_depth=4.0)
+    fragments = []
+    for k in range(options.fragments):
+        start = 360.0 * k / options.fragments
+        first = _camera(start)
+        to_first = np.linalg.inv(first)
+        parts = []
+        for f in range(options.frames_per_fragment):
+            camera = _camera(start + f * options.frame_step)
+            scan = scan_meshes(meshes, intrinsics, camera, noise=noise, rng=rng)
+            pose = to_first @ camera
+            parts.append(scan.points @ pose[:3, :3].T + pose[:3, 3])
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.concatenate(parts)))
+        points = np.asarray(cloud.voxel_down_sample(options.spacing).points)
+        fragments.append(Fragment(points, first))
+    return fragments
+
+
+def fragment_pairs(
+    fragments: list[Fragment], overlap: float = 0.3, distance: float = 0.05,
+) -> dict[tuple[int, int], np.ndarray]:
+    """The pairs ``(i, j)``, ``i < j``, whose overlap exceeds ``overlap``: the share of
+    the smaller fragment's points within ``distance`` metres of the other's, placed by
+    the truth (the geometric-registration benchmark's rule, 30%). Each maps to the 4x4
+    transformation that takes fragment ``j`` onto fragment ``i`` (``gt.log``'s)."""
+    pairs = {}
+    for i, j in itertools.combinations(range(len(fragments)), 2):
+        a, b = fragments[i], fragments[j]
+        T = np.linalg.inv(a.world_from_fragment) @ b.world_from_fragment
+        moved = b.points @ T[:3, :3].T + T[:3, 3]
+        smaller, other = (moved, a.points) if len(moved) <= len(a.points) else (a.points, moved)
+        if _share(smaller, other, distance) > overlap:
+            pairs[(i, j)] = T
+    return pairs
+
+
+def _share(points: np.ndarray, other: np.ndarray, distance: float) -> float:
+    """The share of ``points`` (N, 3) within ``distance`` of ``other`` (M, 3)."""
+    d, _ = cKDTree(other).query(points, distance_upper_bound=distance)
+    return float(np.mean(np.isfinite(d)))
