@@ -41,6 +41,11 @@ Groups and voxel sizes:
 * ``dragon_model``: the dragon model into each of its eight scans, the model the other
   seven scans merged at their recorded poses (thinned to 1 mm), turned by ``--rotations``
   seeded random rotations; 5 mm.
+* ``room_fragments``: the pairs of a synthetic room's fragments that overlap by over 30%
+  (``o3d_spectral.synthetic.room``, seed 300: a furnished room 4.6 x 3.8 m fused in runs of
+  five depth frames, 1 cm points, no normals, each fragment in its first camera's frame),
+  5 cm, as the geometric-registration benchmark's fragments are registered; success: its
+  recall's rotation error under 15 degrees and translation error under 30 cm.
 * real cases (``o3d_spectral.harness.real``; ``dragon_24`` to ``dragon_120``: 5 mm, the
   dragon is 0.2 m across; ``ycbv_crop``, ``ycbv_frame``: 8 mm, as the suites' YCB
   objects): every case from ``--rotations`` seeded random rotations of its source (uniform
@@ -85,9 +90,11 @@ from o3d_spectral.harness import real  # noqa: E402
 from o3d_spectral.harness.errors import rotation_error, translation_error  # noqa: E402
 from o3d_spectral.harness.methods import get_method  # noqa: E402
 from o3d_spectral.harness.metrics import instance_score  # noqa: E402
+from o3d_spectral.harness.pairs import RECALL_ROTATION_DEG, RECALL_TRANSLATION_M  # noqa: E402
 from o3d_spectral.harness.runner import task_seed  # noqa: E402
 from o3d_spectral.harness.writers import write_rows  # noqa: E402
 from o3d_spectral.synthetic.models import model_names  # noqa: E402
+from o3d_spectral.synthetic.room import RoomOptions, fragment_pairs, room_fragments  # noqa: E402
 from o3d_spectral.synthetic.sampling import rigid, sample_rotation  # noqa: E402
 from o3d_spectral.synthetic.suite import load_suite  # noqa: E402
 from o3d_spectral.synthetic.turntable import TURNTABLE_ELEVATIONS, turntable_pair  # noqa: E402
@@ -147,8 +154,11 @@ TURNTABLE_GROUPS = {"turntable_45": 45, "turntable_90": 90, "turntable_135": 135
 UNORIENTED_GROUPS = ("dragon_24", "dragon_48", "dragon_72")
 #: Spacing (metres) the merged dragon model is thinned to.
 DRAGON_MODEL_SPACING = 0.001
+#: The synthetic room of the ``room_fragments`` group, and the voxel (metres) its
+#: fragments are registered at (the geometric-registration benchmark's).
+ROOM_SEED, ROOM_VOXEL = 300, 0.05
 ALL_GROUPS = (*CONDITIONS, "crop_in_scene", "wide", *TURNTABLE_GROUPS, "dragon_unoriented",
-              "dragon_model", *real.GROUPS)
+              "dragon_model", "room_fragments", *real.GROUPS)
 
 
 #: The groups made from the suites' folder (``--suites``).
@@ -169,6 +179,8 @@ def group_tasks(group: str, suites: Path | None, rotations: int, limit: int) -> 
         return list(unoriented_tasks(rotations, limit))
     if group == "dragon_model":
         return list(dragon_model_tasks(rotations, limit))
+    if group == "room_fragments":
+        return list(room_tasks(limit))
     return list(real_tasks(group, rotations, limit))
 
 
@@ -238,6 +250,23 @@ def dragon_model_tasks(rotations: int, limit: int) -> Iterator[Task]:
             yield Task("dragon_model", f"{case.name}_r{r}", turned.source, turned.target,
                        real.DRAGON_VOXEL, seed, real.case_score(turned))
             count += 1
+
+
+def room_tasks(limit: int) -> Iterator[Task]:
+    """The fragment pairs of the room :data:`ROOM_SEED` overlapping by over 30%
+    (:func:`o3d_spectral.synthetic.room.fragment_pairs`), fragment ``j`` onto fragment
+    ``i``, in their order in ``gt.log``."""
+    fragments = room_fragments(RoomOptions(), ROOM_SEED)
+    for index, ((i, j), truth) in enumerate(sorted(fragment_pairs(fragments).items())[:limit]):
+        source, target = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fragments[k].points))
+                          for k in (j, i))
+
+        def score(T, truth=truth):
+            rot, tra = rotation_error(T, truth), translation_error(T, truth)
+            return rot, tra, bool(rot < RECALL_ROTATION_DEG and tra < RECALL_TRANSLATION_M)
+
+        yield Task("room_fragments", f"room_{ROOM_SEED}_{i}_{j}", source, target, ROOM_VOXEL,
+                   index, score)
 
 
 def crop_tasks(root: Path, limit: int) -> Iterator[Task]:
