@@ -118,7 +118,7 @@ class BatchedCorrelation:
         overlap: ArrayLike | None = None, overlap_at: ArrayLike | None = None,
         spectrum: ArrayLike | None = None,
     ) -> None:
-        fixed = np.asarray(fixed, dtype=np.float32)
+        fixed = np.asarray(fixed)  # only its shape is read where its spectrum is given
         if fixed.ndim != 3:
             raise ValueError(f"fixed must be a 3D grid, got shape {fixed.shape}")
         self.moving_shape = tuple(int(n) for n in moving_shape)
@@ -158,7 +158,7 @@ class BatchedCorrelation:
         except MemoryError as error:
             raise self._too_large() from error
 
-    def _spectrum(self, fixed: NDArray[np.float32], spectrum: ArrayLike | None) -> object:
+    def _spectrum(self, fixed: NDArray, spectrum: ArrayLike | None) -> object:
         """The fixed grid's half spectrum on the backend: ``spectrum`` where given, of
         the FFT grid's half spectrum shape."""
         if spectrum is None:
