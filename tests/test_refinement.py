@@ -113,3 +113,38 @@ def test_a_polish_at_half_the_voxel_reads_fewer_points_and_lands_near_the_whole_
 
     assert error(thin) < error(whole) + 0.1 and error(whole) < 1.0
     assert np.linalg.norm(thin[:3, 3] - whole[:3, 3]) < 1e-3
+
+
+def test_evenly_spread_keeps_count_points_first_and_last_with_their_normals():
+    points = np.arange(30.0).reshape(10, 3)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    cloud.normals = o3d.utility.Vector3dVector(-points)
+    assert refinement.evenly_spread(cloud, 10) is cloud  # within the budget: itself
+    spread = refinement.evenly_spread(cloud, 4)
+    np.testing.assert_array_equal(np.asarray(spread.points), points[[0, 3, 6, 9]])
+    np.testing.assert_array_equal(np.asarray(spread.normals), -points[[0, 3, 6, 9]])
+
+
+def test_a_source_over_the_budget_is_polished_on_that_many_points(scans, monkeypatch):
+    """The final ICP reads at most ``MAX_POLISH_POINTS`` of the source (its cut within
+    reach of the target drawn from them); on a fifth of a dragon scan the pose from a
+    start 2 degrees off is as near the recorded truth as the whole scan's (0.48 and 0.50
+    degrees), within half a millimetre of it (0.1 mm)."""
+    from o3d_spectral import RefinementOption
+
+    source, target, truth = scans
+    start = turned(truth, 2.0)
+    calls = counted_icp(monkeypatch)
+    whole = refinement.refine(source, target, VOXEL, start, RefinementOption())
+    assert len(source.points) <= refinement.MAX_POLISH_POINTS  # read whole
+    cut = max(n for n, _ in calls)
+    calls.clear()
+    monkeypatch.setattr(refinement, "MAX_POLISH_POINTS", len(source.points) // 5)
+    spread = refinement.refine(source, target, VOXEL, start, RefinementOption())
+    assert max(n for n, _ in calls) < min(cut, len(source.points) // 5)
+
+    def error(pose):
+        return np.rad2deg(so3.rotation_angle(pose[:3, :3].T @ truth[:3, :3]))
+
+    assert error(spread) < error(whole) + 0.1 and error(whole) < 1.0
+    assert np.linalg.norm(spread[:3, 3] - whole[:3, 3]) < 5e-4  # metres

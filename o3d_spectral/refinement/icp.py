@@ -19,12 +19,12 @@ from ..io.cloud import extent
 from ..io.density import first_per_cell
 from ..io.rows import in_ball, lengths
 from ..options import RefinementOption
-from .constants import GUARD_SHARE, REACH, RECUTS, TUTORIAL_DISTANCE
+from .constants import GUARD_SHARE, MAX_POLISH_POINTS, REACH, RECUTS, TUTORIAL_DISTANCE
 
 __all__ = [
     "point_to_plane_icp", "point_to_plane_refinement", "refine", "near_pose", "GUARD_SHARE",
     "polish_within_reach", "convergence", "REACH", "RECUTS",
-    "with_normals", "thinned",
+    "with_normals", "thinned", "evenly_spread", "MAX_POLISH_POINTS",
 ]
 
 
@@ -34,6 +34,15 @@ def thinned(cloud: o3d.geometry.PointCloud, cell: float) -> o3d.geometry.PointCl
     share a cell."""
     keep = first_per_cell(np.asarray(cloud.points), cell)
     return cloud if len(keep) == len(cloud.points) else cloud.select_by_index(keep)
+
+
+def evenly_spread(cloud: o3d.geometry.PointCloud, count: int) -> o3d.geometry.PointCloud:
+    """``cloud`` itself, or where it holds more than ``count`` points, ``count`` of them
+    (normals kept) evenly spread over its order, its first and last included."""
+    total = len(cloud.points)
+    if total <= count:
+        return cloud
+    return cloud.select_by_index(np.linspace(0, total - 1, count).astype(np.int64))
 
 
 def near_pose(
@@ -146,7 +155,10 @@ def refine(
     voxel, and only the better is polished again on the whole source: the whole source's
     ICP is most of the cost (a 40k-point dragon scan against one 72 degrees away, which
     shares a fifth of it: 0.2-0.6 s, its 30 iterations spent). Polishing both starts on
-    the whole source takes twice as long for no better result.
+    the whole source takes twice as long for no better result. A source of over
+    :data:`MAX_POLISH_POINTS` points is polished on that many of them, evenly spread
+    (:func:`evenly_spread`): a room's fragment of 200k points at 5 cm gains nothing more
+    from the rest.
 
     ``init`` itself when the kept result has at most ``GUARD_SHARE`` of the inliers of
     ``init`` at ``option.distance``: from a wrong pose with few correspondences on a thin
@@ -171,7 +183,8 @@ def refine(
         wide = point_to_plane_icp(sparse, target, option.wide_distance * voxel_size, init)
         widened = point_to_plane_refinement(sparse, target, voxel_size, wide, option.distance)
         start = widened if fitness(widened) > fitness(plain) else plain
-    refined = polish_within_reach(source, target, tree, option.distance * voxel_size, start)
+    refined = polish_within_reach(evenly_spread(source, MAX_POLISH_POINTS), target, tree,
+                                  option.distance * voxel_size, start)
     return init if fitness(refined) <= GUARD_SHARE * fitness(init) else refined
 
 
