@@ -420,10 +420,10 @@ def density_notes() -> str:
     )
 
 
-def speed() -> str:
-    """The speed bench: each group's median times, ratios against the lean FPFH-RANSAC
-    (and the tutorial's pipeline), success and early stops."""
-    rows = read_csv("speed")
+def speed(name: str = "speed") -> str:
+    """The speed bench (the stored output ``name``): each group's median times, ratios
+    against the lean FPFH-RANSAC (and the tutorial's pipeline), success and early stops."""
+    rows = read_csv(name)
     header = ["group", "n", "spectral median s", "lean FPFH median s", "tutorial FPFH median s",
               "ratio median", "ratio p90", "ratio median (tutorial)", "spectral success",
               "lean FPFH success", "tutorial FPFH success", "early stops", "wrong early stops"]
@@ -436,7 +436,7 @@ def speed() -> str:
     return "\n".join([
         table(header, lines),
         "",
-        provenance("speed") + " One thread per call, each instance's median of three "
+        provenance(name) + " One thread per call, each instance's median of three "
         "calls with the methods in turn; ratio = spectral / lean FPFH-RANSAC (its ICP on "
         "both clouds thinned to half the voxel); early stops: spectral calls confirmed "
         "before the climbs, and how many of them were wrong. Read a ratio to within about "
@@ -449,6 +449,12 @@ def speed_change() -> str:
     median ratio to the lean FPFH-RANSAC and both methods' median seconds, before and
     now."""
     return _change("speed_before", "speed", "one thread")
+
+
+def room_speed() -> str:
+    """The speed bench's room fragments, and the same run at the commit before."""
+    return "\n\n".join([speed("speed_room"),
+                         _change("speed_room_before", "speed_room", "one thread")])
 
 
 def cores_change() -> str:
@@ -1064,6 +1070,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "speed": speed,
     "speed-change": speed_change,
     "cores-change": cores_change,
+    "room-speed": room_speed,
     "cores": cores,
     "speed-stages": speed_stages,
     "settings": settings,
