@@ -191,10 +191,10 @@ class RefinementOption:
 
     Open3D's point-to-plane ICP on the full clouds (of a source over 100,000 points, that
     many evenly spread: ``o3d_spectral.refinement.constants.MAX_POLISH_POINTS``), with
-    correspondences up to ``distance`` voxels, optionally also after a first, wider pass; the result with the
-    higher fitness at ``distance`` is kept, unless it slid off the surface (keeping at
-    most half of the law's inliers), when the law's pose is returned. Pass
-    ``refinement=None`` to the registration calls for the law's pose alone.
+    correspondences up to ``distance`` voxels, optionally also after a first, wider pass;
+    the result with the higher fitness at ``distance`` is kept, unless it slid off the
+    surface (keeping at most half of the law's inliers), when the law's pose is returned.
+    Pass ``refinement=None`` to the registration calls for the law's pose alone.
 
     Attributes
     ----------
