@@ -21,8 +21,9 @@ REACH = 1.5
 
 #: :func:`refine`: the final ICP reads at most this many of the source's points, evenly
 #: spread over its order: each of its iterations costs in proportion to the points while
-#: its pose stops gaining long before. Room fragments of 90-220k points at 5 cm
-#: (``eval/bench_speed.py --groups room_fragments --repeats 3``, 14 pairs, one thread):
+#: its pose stops gaining long before. Room fragments of 90-220k points at 5 cm (the
+#: room of ``eval/bench_speed.py --groups room_fragments --repeats 3`` at commit fd6c282,
+#: before the room held clutter on its floor; 14 pairs, one thread):
 #: the 13 right pairs' median errors 0.057 degree and 1.25 mm on every point, 0.049 /
 #: 1.16 at this budget; the calls' total time 58.4 -> 49.6 s, most of it where the
 #: polish of a wrong turn slid over 200k points (12.1 -> 5.3 s), the median unchanged

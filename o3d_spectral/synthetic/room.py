@@ -2,10 +2,11 @@
 who fuses depth frames in short runs and must join the runs without their poses.
 
 :func:`room_meshes` builds a room (floor, four walls, cabinets and frames along the walls,
-tables with bundled models on them). :func:`room_fragments` moves a depth camera round
-the room's centre, looking out at the walls: each fragment fuses a few consecutive depth
-frames (:mod:`o3d_spectral.synthetic.camera`, Kinect-like noise) and is read one point per
-cube of ``spacing``, in the frame of its first camera, without normals, as the
+tables with bundled models on them, boxes, chairs and lamps on the floor).
+:func:`room_fragments` moves a depth camera round the room's centre, looking out at the
+walls: each fragment fuses a few consecutive depth frames
+(:mod:`o3d_spectral.synthetic.camera`, Kinect-like noise) and is read one point per cube
+of ``spacing``, in the frame of its first camera, without normals, as the
 geometric-registration benchmark's fragments are. Fragments a few turns apart share part
 of the room; :func:`fragment_pairs` lists the pairs that share enough of it, with the
 transformation that takes one onto the other.
@@ -37,12 +38,15 @@ class RoomOptions:
     ----------
     size : (float, float, float), default (4.6, 3.8, 2.6)
         The room's length, width and height, metres.
-    cabinets : int, default 6
+    cabinets : int, default 8
         Boxes 0.4-1.4 m wide standing against the walls.
-    frames : int, default 6
+    frames : int, default 8
         Thin boxes (pictures, shelves) hung on the walls 0.9-2 m up.
-    tables : int, default 2
+    tables : int, default 3
         Tables (0.8 x 0.6 m, 0.75 m high) with three bundled models each.
+    clutter : int, default 14
+        Things standing on the floor between the camera's run and the walls: boxes,
+        chairs and floor lamps, at random places and headings.
     fragments : int, default 12
         Fragments, their first cameras evenly spread over a full turn.
     frames_per_fragment : int, default 5
@@ -54,9 +58,10 @@ class RoomOptions:
     """
 
     size: tuple[float, float, float] = (4.6, 3.8, 2.6)
-    cabinets: int = 6
-    frames: int = 6
-    tables: int = 2
+    cabinets: int = 8
+    frames: int = 8
+    tables: int = 3
+    clutter: int = 14
     fragments: int = 12
     frames_per_fragment: int = 5
     frame_step: float = 6.0
@@ -95,9 +100,43 @@ def _against_wall(
     return xy, (np.pi / 2 if wall % 2 == 0 else 0.0)
 
 
+def _chair(yaw: float, xy: np.ndarray) -> list[o3d.geometry.TriangleMesh]:
+    """A chair (seat 0.45 m up, back 0.9 m) at ``xy`` (metres) facing ``yaw`` radians."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = rigid(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([*xy, 0.0]))
+    parts = [_box(np.array([0.45, 0.45, 0.05]), np.array([0.0, 0.0, 0.45])),
+             _box(np.array([0.05, 0.45, 0.45]), np.array([-0.2, 0.0, 0.7]))]
+    parts += [_box(np.array([0.04, 0.04, 0.43]), np.array([x, y, 0.215]))
+              for x in (-0.2, 0.2) for y in (-0.2, 0.2)]
+    return [part.transform(turn) for part in parts]
+
+
+def _lamp(xy: np.ndarray) -> list[o3d.geometry.TriangleMesh]:
+    """A floor lamp at ``xy`` (metres): a pole 1.5 m high under a shade."""
+    pole = o3d.geometry.TriangleMesh.create_cylinder(radius=0.02, height=1.5)
+    shade = o3d.geometry.TriangleMesh.create_cone(radius=0.22, height=0.3)
+    return [pole.translate([*xy, 0.75]), shade.translate([*xy, 1.35])]
+
+
+def _clutter(size: np.ndarray, rng: np.random.Generator) -> list[o3d.geometry.TriangleMesh]:
+    """One thing on the floor (a box, a chair or a lamp) 1-2 m from the room's centre and
+    at least 0.3 m from the walls."""
+    half = size[:2] / 2 - 0.3
+    while True:
+        xy = rng.uniform(-half, half)
+        if 1.0 <= np.linalg.norm(xy) <= 2.0:
+            break
+    kind, yaw = int(rng.integers(3)), rng.uniform(0.0, 2 * np.pi)
+    if kind == 0:
+        extent = rng.uniform(0.15, 0.7, size=3)
+        return [_box(extent, np.array([*xy, extent[2] / 2]), yaw)]
+    return _chair(yaw, xy) if kind == 1 else _lamp(xy)
+
+
 def room_meshes(options: RoomOptions, rng: np.random.Generator) -> list[o3d.geometry.TriangleMesh]:
     """The room of ``options`` (world frame, metres; the floor is z = 0, the room centred
-    on the vertical axis): floor, walls, cabinets, frames and tables with models."""
+    on the vertical axis): floor, walls, cabinets, frames, tables with models and the
+    clutter on the floor."""
     size = np.asarray(options.size, dtype=float)
     wall = 0.1
     meshes = [_box(np.array([size[0], size[1], wall]), np.array([0.0, 0.0, -wall / 2]))]
@@ -125,6 +164,8 @@ def room_meshes(options: RoomOptions, rng: np.random.Generator) -> list[o3d.geom
         legs = [_box(np.array([0.04, 0.04, 0.72]), np.array([x, y, -0.39]))
                 for x in (-0.36, 0.36) for y in (-0.26, 0.26)]
         meshes += [m.transform(placed) for m in (table_mesh(), *legs, *models)]
+    for _ in range(options.clutter):
+        meshes += _clutter(size, rng)
     return meshes
 
 
