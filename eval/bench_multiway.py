@@ -10,17 +10,22 @@ one voxel, no rival):
   its centroid by a seeded random rotation (one draw per seed, ``--seeds``);
 * ``turntable``: for each bundled model, 8 depth views, a camera every 45 degrees of
   azimuth at 30 degrees of elevation, 0.45 m from the model's centre, each view in its own
-  camera frame (8 mm voxel).
+  camera frame (8 mm voxel);
+* ``room``: a synthetic furnished room's 12 fragments (``o3d_spectral.synthetic.room``,
+  seed 300 + k for ``--rooms`` k), each in its first camera's frame, in a seeded random
+  order (5 cm voxel): a room from unordered scans.
 
-A scan is placed right when its pose is within 5 degrees and 1 cm (at its centroid) of
-the truth, allowing a model's symmetry group (in the first scan's frame: a symmetric
-object's scans are placed up to it). Prints a Markdown table, writes ``rows.csv`` (one
-row per scan), ``summary.csv`` and ``table.md`` to ``--out`` (``docs/data/multiway``:
+A scan is placed right when its pose is within 5 degrees and 1 cm (a room's fragment:
+10 cm, two voxels) of the truth at its centroid, allowing a model's symmetry group (in
+the first scan's frame: a symmetric object's scans are placed up to it). Prints a
+Markdown table, writes ``rows.csv`` (one row per scan), ``summary.csv`` and ``table.md``
+to ``--out`` (``docs/data/multiway``:
 ``tools/docs_figures.py`` renders the table of ``docs/multiway.md`` from its
 ``summary.csv``)::
 
     python eval/bench_multiway.py --out docs/data/multiway
     python eval/bench_multiway.py --limit-scans 3 --models 1 --seeds 1 --out /tmp/mw
+    python eval/bench_multiway.py --seeds 0 --models 0 --rooms 1 --out docs/data/multiway_room
 """
 
 from __future__ import annotations
@@ -46,13 +51,14 @@ from o3d_spectral.multiway.registration import pair_list, poses_from_pairs
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.instance import SceneOptions
 from o3d_spectral.synthetic.models import model_names
+from o3d_spectral.synthetic.room import RoomOptions, room_fragments
 from o3d_spectral.synthetic.sampling import model_mesh
 from o3d_spectral.synthetic.symmetry import Symmetry, model_symmetry
 
 PIPELINES = ("spectral", "fpfh_ransac_lean")
-DRAGON_VOXEL, TURNTABLE_VOXEL = 0.005, 0.008
+DRAGON_VOXEL, TURNTABLE_VOXEL, ROOM_VOXEL = 0.005, 0.008, 0.05
 VIEWS, AZIMUTH_STEP, ELEVATION, DISTANCE = 8, 45.0, 30.0, 0.45
-MAX_ROTATION_DEG, MAX_TRANSLATION_M = 5.0, 0.01
+MAX_ROTATION_DEG, MAX_TRANSLATION_M, ROOM_MAX_TRANSLATION_M = 5.0, 0.01, 0.1
 
 
 def dragon_set(seed: int, limit: int) -> tuple[list, list, list]:
@@ -94,6 +100,16 @@ def turntable_set(name: str, seed: int, limit: int) -> tuple[list, list, list]:
     return clouds, poses, [symmetry.transformed(np.linalg.inv(p)) for p in poses]
 
 
+def room_set(seed: int, limit: int) -> tuple[list, list, list]:
+    """The first ``limit`` fragments of the room of ``seed``, shuffled by ``seed``:
+    (clouds, world_from_fragment poses, symmetries)."""
+    fragments = room_fragments(RoomOptions(), seed)[:limit]
+    order = np.random.default_rng(seed).permutation(len(fragments))
+    clouds = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fragments[k].points))
+              for k in order]
+    return clouds, [fragments[k].world_from_fragment for k in order], [Symmetry()] * len(order)
+
+
 def fpfh_records(clouds: list, voxel: float, seed: int) -> list:
     """Every pair registered by lean FPFH-RANSAC, as the multiway pipeline's records."""
     method = get_method("fpfh_ransac_lean")
@@ -110,7 +126,8 @@ def fpfh_records(clouds: list, voxel: float, seed: int) -> list:
 
 
 def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline: str,
-            seed: int, option: o3d_spectral.MultiwayOption) -> tuple[list[dict], float]:
+            seed: int, option: o3d_spectral.MultiwayOption,
+            max_translation: float = MAX_TRANSLATION_M) -> tuple[list[dict], float]:
     """One set registered by ``pipeline``: a row per scan (errors, success) and seconds."""
     start = time.perf_counter()
     if pipeline == "spectral":
@@ -131,7 +148,7 @@ def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline
         rows.append({"scan": k, "rotation_error_deg": rotation,
                      "translation_error_m": translation,
                      "success": bool(rotation < MAX_ROTATION_DEG
-                                     and translation < MAX_TRANSLATION_M),
+                                     and translation < max_translation),
                      "unconnected": k in result.unconnected,
                      "doubtful": k in result.doubtful})
     return rows, seconds
@@ -140,11 +157,14 @@ def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline
 def sets(args: argparse.Namespace):
     """Yields (suite, name, seed, clouds, truths, symmetries, voxel)."""
     for seed in range(args.seeds):
-        yield ("dragon", f"seed {seed}", seed, *dragon_set(seed, args.limit_scans),
+        yield ("dragon", f"seed {seed}", seed, *dragon_set(seed, args.limit_scans or VIEWS),
                DRAGON_VOXEL)
     for m, name in enumerate(model_names()[:args.models]):
-        yield ("turntable", name, m, *turntable_set(name, m, args.limit_scans),
+        yield ("turntable", name, m, *turntable_set(name, m, args.limit_scans or VIEWS),
                TURNTABLE_VOXEL)
+    for k in range(args.rooms):
+        yield ("room", f"room {300 + k}", 300 + k,
+               *room_set(300 + k, args.limit_scans or RoomOptions.fragments), ROOM_VOXEL)
 
 
 def summary(rows: list[dict], times: dict) -> list[dict]:
@@ -214,7 +234,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=3, help="random turns of the dragon")
     parser.add_argument("--models", type=int, default=len(model_names()),
                         help="the first this many bundled models (sorted by name)")
-    parser.add_argument("--limit-scans", type=int, default=VIEWS, help="scans per set")
+    parser.add_argument("--rooms", type=int, default=0, help="synthetic rooms")
+    parser.add_argument("--limit-scans", type=int, default=None,
+                        help=f"scans per set ({VIEWS}; a room's {RoomOptions.fragments})")
     parser.add_argument("--pipelines", nargs="+", choices=PIPELINES, default=list(PIPELINES))
     parser.add_argument("--workers", type=int, default=None, help="threads (all cores)")
     parser.add_argument("--refine", action="store_true",
@@ -223,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="folder for the outputs")
     args = parser.parse_args(argv)
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)  # stdout: the table
-    if args.limit_scans < 2:
+    if args.limit_scans is not None and args.limit_scans < 2:
         parser.error("--limit-scans must be at least 2")
     command = "python eval/bench_multiway.py " + " ".join(
         a for a in (argv if argv is not None else sys.argv[1:]))
@@ -233,7 +255,8 @@ def main(argv: list[str] | None = None) -> int:
     for suite, name, seed, clouds, truths, symmetries, voxel in sets(args):
         for pipeline in args.pipelines:
             scans, seconds = run_set(clouds, truths, symmetries, voxel, pipeline, seed,
-                                     option)
+                                     option, ROOM_MAX_TRANSLATION_M if suite == "room"
+                                     else MAX_TRANSLATION_M)
             times[(suite, name, pipeline)] = seconds
             rows += [{"suite": suite, "set": name, "pipeline": pipeline, **r} for r in scans]
             print(f"{suite} {name} {pipeline}: {sum(r['success'] for r in scans)}/"

@@ -275,6 +275,15 @@ def test_bench_multiway(tmp_path):
     assert printed.endswith((tmp_path / "table.md").read_text())
 
 
+def test_bench_multiway_registers_a_rooms_fragments(tmp_path):
+    run("bench_multiway.py", "--seeds", 0, "--models", 0, "--rooms", 1, "--limit-scans", 3,
+        "--workers", 1, "--out", tmp_path, cwd=tmp_path)
+    rows = read_csv(tmp_path / "rows.csv")
+    assert [(r["suite"], r["set"], r["scan"]) for r in rows] == [
+        ("room", "room 300", str(k)) for _ in ("spectral", "fpfh_ransac_lean") for k in range(3)]
+    assert rows[0]["success"] == "True"  # the first scan is the frame: placed exactly
+
+
 def test_bench_prepared(suites, tmp_path):
     from o3d_spectral.synthetic.suite import load_suite
 
