@@ -451,12 +451,6 @@ def speed_change() -> str:
     return _change("speed_before", "speed", "one thread")
 
 
-def room_speed() -> str:
-    """The speed bench's room fragments, and the same run at the commit before."""
-    return "\n\n".join([speed("speed_room"),
-                         _change("speed_room_before", "speed_room", "one thread")])
-
-
 def cores_change() -> str:
     """:func:`speed_change` for the bench on every core."""
     return _change("speed_all_cores_before", "speed_all_cores", "every core")
@@ -749,10 +743,10 @@ def readme_speed() -> str:
 MULTIWAY_PIPELINES = ("spectral", "fpfh_ransac_lean")
 
 
-def multiway() -> str:
+def multiway(source: str = "multiway") -> str:
     """Scans placed right of each set, and seconds per set, for both pipelines: from
-    ``eval/bench_multiway.py``'s ``summary.csv``."""
-    rows = {(r["suite"], r["set"], r["pipeline"]): r for r in read_csv("multiway")}
+    ``eval/bench_multiway.py``'s ``summary.csv`` (the stored output ``source``)."""
+    rows = {(r["suite"], r["set"], r["pipeline"]): r for r in read_csv(source)}
     suites = list(dict.fromkeys(suite for suite, _, _ in rows))
     sets = sorted(dict.fromkeys((suite, name) for suite, name, _ in rows),
                   key=lambda key: (suites.index(key[0]), key[1] == "all"))
@@ -771,7 +765,8 @@ def multiway() -> str:
         table(["suite", "set", *(f"{p}: {k}" for p in MULTIWAY_PIPELINES for k in ("right", "s")),
                "spectral: doubtful (wrong)", "spectral: wrong, not doubtful"], lines),
         "",
-        provenance("multiway") + " Every scan's errors: `docs/data/multiway/rows.csv`.",
+        provenance(source) + " Every scan's errors: "
+        f"`docs/data/{Path(sources()[source]['file']).parent}/rows.csv`.",
     ])
 
 
@@ -1070,7 +1065,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "speed": speed,
     "speed-change": speed_change,
     "cores-change": cores_change,
-    "room-speed": room_speed,
+    "room-speed": lambda: speed("speed_room"),
     "cores": cores,
     "speed-stages": speed_stages,
     "settings": settings,
@@ -1078,6 +1073,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "readme-speed": readme_speed,
     "recall": recall,
     "multiway": multiway,
+    "multiway-room": lambda: multiway("multiway_room"),
     "servo": servo,
     "servo-results": servo_results,
     "readme-servo": readme_servo,
