@@ -58,6 +58,7 @@ SCRIPTS = (
     "fuzz_cli.py",
     "handle_visibility.py",
     "recall_generators.py",
+    "room_fragments.py",
     "run_benchmark.py",
     "tune_fpfh.py",
     "voxel_advice.py",
@@ -282,6 +283,22 @@ def test_bench_multiway_registers_a_rooms_fragments(tmp_path):
     assert [(r["suite"], r["set"], r["scan"]) for r in rows] == [
         ("room", "room 300", str(k)) for _ in ("spectral", "fpfh_ransac_lean") for k in range(3)]
     assert rows[0]["success"] == "True"  # the first scan is the frame: placed exactly
+
+
+def test_room_fragments(tmp_path):
+    """A small room written in the 3DMatch layout reads back as its pairs, each truth
+    recalled exactly (``gt.log`` holds 11 significant digits; the angle's arccos reads
+    them to ~1e-4 degree)."""
+    from o3d_spectral.harness.pairs import PairSet
+
+    run("room_fragments.py", "--seeds", 7, "--fragments", 8, "--frames-per-fragment", 2,
+        "--frame-step", 20.0, "--spacing", 0.02, "--out", tmp_path, cwd=tmp_path)
+    pairs = PairSet(tmp_path / "room_7")
+    assert len(pairs) >= 2
+    for index in range(len(pairs)):
+        score = pairs.score(pairs[index].T_gt, index)
+        assert score["recalled"] and score["rmse_recalled"]
+        assert score["re_deg"] < 1e-3 and score["te_m"] < 1e-9 and score["rmse_m"] < 1e-6
 
 
 def test_bench_prepared(suites, tmp_path):
