@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.models import model_names
-from o3d_spectral.synthetic.sampling import rigid
+from o3d_spectral.synthetic.sampling import rigid, transform_points
 from o3d_spectral.synthetic.sensor import CameraIntrinsics, DepthNoise
 from o3d_spectral.synthetic.tabletop import table_mesh, tabletop
 
@@ -77,13 +77,17 @@ class Fragment:
     world_from_fragment: np.ndarray
 
 
+def _yawed(yaw: float, at: np.ndarray) -> np.ndarray:
+    """The 4x4 pose turned ``yaw`` radians about the vertical and moved to ``at`` (3,)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return rigid(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), at)
+
+
 def _box(extent: np.ndarray, centre: np.ndarray, yaw: float = 0.0) -> o3d.geometry.TriangleMesh:
     """A box of ``extent`` (3,) metres centred on ``centre`` (3,), turned ``yaw`` radians
     about the vertical."""
     box = o3d.geometry.TriangleMesh.create_box(*extent).translate(-0.5 * np.asarray(extent))
-    c, s = np.cos(yaw), np.sin(yaw)
-    box.transform(rigid(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), centre))
-    return box
+    return box.transform(_yawed(yaw, centre))
 
 
 def _against_wall(
@@ -102,8 +106,7 @@ def _against_wall(
 
 def _chair(yaw: float, xy: np.ndarray) -> list[o3d.geometry.TriangleMesh]:
     """A chair (seat 0.45 m up, back 0.9 m) at ``xy`` (metres) facing ``yaw`` radians."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    turn = rigid(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([*xy, 0.0]))
+    turn = _yawed(yaw, np.array([*xy, 0.0]))
     parts = [_box(np.array([0.45, 0.45, 0.05]), np.array([0.0, 0.0, 0.45])),
              _box(np.array([0.05, 0.45, 0.45]), np.array([-0.2, 0.0, 0.7]))]
     parts += [_box(np.array([0.04, 0.04, 0.43]), np.array([x, y, 0.215]))
@@ -192,8 +195,7 @@ def room_fragments(options: RoomOptions, seed: int) -> list[Fragment]:
         for f in range(options.frames_per_fragment):
             camera = _camera(start + f * options.frame_step)
             scan = scan_meshes(meshes, intrinsics, camera, noise=noise, rng=rng)
-            pose = to_first @ camera
-            parts.append(scan.points @ pose[:3, :3].T + pose[:3, 3])
+            parts.append(transform_points(to_first @ camera, scan.points))
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.concatenate(parts)))
         points = np.asarray(cloud.voxel_down_sample(options.spacing).points)
         fragments.append(Fragment(points, first))
@@ -207,18 +209,16 @@ def fragment_pairs(
     the smaller fragment's points within ``distance`` metres of the other's, placed by
     the truth (the geometric-registration benchmark's rule, 30%). Each maps to the 4x4
     transformation that takes fragment ``j`` onto fragment ``i`` (``gt.log``'s)."""
+    trees = [cKDTree(f.points) for f in fragments]  # one a fragment, in its own frame
     pairs = {}
     for i, j in itertools.combinations(range(len(fragments)), 2):
         a, b = fragments[i], fragments[j]
         T = np.linalg.inv(a.world_from_fragment) @ b.world_from_fragment
-        moved = b.points @ T[:3, :3].T + T[:3, 3]
-        smaller, other = (moved, a.points) if len(moved) <= len(a.points) else (a.points, moved)
-        if _share(smaller, other, distance) > overlap:
+        if len(b.points) <= len(a.points):  # the smaller's points, near the larger's
+            near, _ = trees[i].query(transform_points(T, b.points), distance_upper_bound=distance)
+        else:
+            near, _ = trees[j].query(transform_points(np.linalg.inv(T), a.points),
+                                     distance_upper_bound=distance)
+        if np.mean(np.isfinite(near)) > overlap:
             pairs[(i, j)] = T
     return pairs
-
-
-def _share(points: np.ndarray, other: np.ndarray, distance: float) -> float:
-    """The share of ``points`` (N, 3) within ``distance`` of ``other`` (M, 3)."""
-    d, _ = cKDTree(other).query(points, distance_upper_bound=distance)
-    return float(np.mean(np.isfinite(d)))
