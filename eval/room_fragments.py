@@ -32,12 +32,11 @@ def write_room(seed: int, out: Path, options: RoomOptions) -> int:
     folder = out / f"room_{seed}"
     folder.mkdir(parents=True, exist_ok=True)
     fragments = room_fragments(options, seed)
-    for k, fragment in enumerate(fragments):
-        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fragment.points))
+    clouds = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(f.points)) for f in fragments]
+    for k, cloud in enumerate(clouds):
         o3d.io.write_point_cloud(str(folder / f"cloud_bin_{k}.ply"), cloud)
     pairs = fragment_pairs(fragments)
     write_log(folder / "gt.log", pairs, len(fragments))
-    clouds = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(f.points)) for f in fragments]
     information = {(i, j): information_matrix(clouds[j], clouds[i], T, INFORMATION_DISTANCE)
                    for (i, j), T in pairs.items()}
     write_log(folder / "gt.info", information, len(fragments))
