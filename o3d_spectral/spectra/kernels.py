@@ -356,6 +356,7 @@ def compile_all() -> None:
                       np.zeros((2, 2, 2)), np.zeros(3, dtype=np.int64), batch=1,
                       moving_shape=(2, 2, 2), shape=(2, 2, 2))
 
+
 if __name__ == "__main__":
     import time
 
