@@ -158,6 +158,28 @@ def _a_stopped_run_leaves_no_set_that_looks_complete(paths, out, capsys):
     assert sorted(p.name for p in out.iterdir()) == ["merged.ply", "merged.png", "poses.json"]
 
 
+@pytest.mark.parametrize(("flag", "cameras"), [([], None), (["--sensor-frames"], [[0.0] * 3] * 2)])
+def test_reconstruct_gives_the_cameras_at_the_origin_with_sensor_frames(
+    tmp_path, monkeypatch, flag, cameras,
+):
+    given = []
+    registration = o3d_spectral.registration_multiway
+
+    def spied(clouds, voxel_size, **options):
+        locations = options["camera_locations"]
+        given.append(None if locations is None else [list(c) for c in locations])
+        return registration(clouds, voxel_size, **options)
+
+    monkeypatch.setattr(o3d_spectral, "registration_multiway", spied)
+    paths = []
+    for k, cloud in enumerate(turned_dragon((0, 24), seed=7)[0]):
+        paths.append(tmp_path / f"scan{k}.ply")
+        o3d.io.write_point_cloud(str(paths[-1]), cloud)
+    assert main(["-q", "reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
+                 str(tmp_path / "out"), *flag]) == 0
+    assert given == [cameras]
+
+
 @pytest.mark.parametrize("arguments", [
     ["ONE", "--voxel-size", "0.005"],
     ["ONE", "ONE2", "--voxel-size", "-1"],

@@ -55,6 +55,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="folder for " + ", ".join(OUTPUTS) + " (made if missing)")
     parser.add_argument("--workers", type=int, default=None,
                         help="threads of the pairwise registrations (default: all cores)")
+    parser.add_argument("--sensor-frames", action="store_true",
+                        help="each scan is in its camera's frame, the camera at the origin "
+                        "(depth frames, fragments in their first camera's frame): no scan "
+                        "is placed where another's camera saw empty space")
     parser.add_argument("--json", action="store_true",
                         help="print the poses as one JSON object (the only thing on stdout)")
     parser.set_defaults(func=run, status=True)
@@ -246,7 +250,9 @@ def register_and_write(args: argparse.Namespace) -> None:
     clouds = [_read(path) for path in args.scans]
     option = o3d_spectral.MultiwayOption(workers=args.workers, progress=_progress(args))
     try:
-        result = o3d_spectral.registration_multiway(clouds, args.voxel_size, option=option)
+        cameras = [np.zeros(3)] * len(clouds) if args.sensor_frames else None
+        result = o3d_spectral.registration_multiway(clouds, args.voxel_size, option=option,
+                                                    camera_locations=cameras)
     except ValueError as error:  # scans refused before any work: named by file, exit 2
         if "clouds[" not in str(error):
             raise

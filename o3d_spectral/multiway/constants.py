@@ -7,3 +7,8 @@
 FINE_CELL, FINE_DISTANCE = 0.25, 0.4
 #: Radius (voxels) of the normals of the voxel down-samples.
 NORMAL_VOXELS = 2.5
+#: A point lies in another scan's free space when it is nearer to that scan's camera than
+#: the surface the camera saw in its direction by more than this many voxels: twice the
+#: grid's own resolution, beyond the depth noise a voxel is chosen above and the pairwise
+#: poses' error (a fraction of a voxel after the polish).
+FREE_SPACE_MARGIN = 2.0

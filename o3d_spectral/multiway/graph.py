@@ -21,11 +21,12 @@ from ..evidence.free_motions import leaves_motion_free
 from ..io.cloud import CloudArrays, as_arrays
 from ..io.units import MAX_EXTENT_RATIO, span
 from ..refinement.icp import point_to_plane_icp
-from .constants import FINE_CELL, FINE_DISTANCE, NORMAL_VOXELS
+from .constants import FINE_CELL, FINE_DISTANCE, FREE_SPACE_MARGIN, NORMAL_VOXELS
 from .options import MultiwayOption, MultiwayResult, PairwiseRecord
+from .tree import Joinable, chained, maximum_spanning_tree
+from .visibility import checked_cameras, free_space_test
 
-__all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight",
-           "maximum_spanning_tree"]
+__all__ = ["poses_from_pairs", "checked_clouds", "selected", "confident", "tree_weight"]
 
 reg = o3d.pipelines.registration
 #: An edge of a pose graph: (source cloud, target cloud, source-to-target transformation,
@@ -36,6 +37,7 @@ Edge = tuple[int, int, NDArray[np.float64], NDArray[np.float64], bool]
 def poses_from_pairs(
     clouds: Sequence[object], voxel_size: float, records: Sequence[PairwiseRecord], *,
     option: MultiwayOption | None = None,
+    camera_locations: Sequence[object | None] | None = None,
 ) -> MultiwayResult:
     """Steps 2-5 of :func:`registration_multiway` on pairwise results made by any method.
 
@@ -45,8 +47,8 @@ def poses_from_pairs(
 
     Parameters
     ----------
-    clouds, voxel_size, option
-        As :func:`registration_multiway`.
+    clouds, voxel_size, option, camera_locations
+        As :func:`o3d_spectral.registration_multiway`.
     records : sequence of PairwiseRecord
         One per registered pair (``kept`` and ``uncertain`` are set here from ``fit``,
         ``fitness``, ``rival_fit`` and ``confidence``; a method without a rival may give
@@ -63,12 +65,12 @@ def poses_from_pairs(
         ``0 <= source < target < len(clouds)``.
     """
     with one_open3d_thread():
-        return _poses_from_pairs(clouds, voxel_size, records, option)
+        return _poses_from_pairs(clouds, voxel_size, records, option, camera_locations)
 
 
 def _poses_from_pairs(
     clouds: Sequence[object], voxel_size: float, records: Sequence[PairwiseRecord],
-    option: MultiwayOption | None,
+    option: MultiwayOption | None, camera_locations: Sequence[object | None] | None,
 ) -> MultiwayResult:
     """:func:`poses_from_pairs` (its Open3D threads limited by the caller)."""
     start = time.perf_counter()
@@ -76,6 +78,7 @@ def _poses_from_pairs(
     check_instance("option", option, MultiwayOption)
     option = option or MultiwayOption()
     arrays = checked_clouds(clouds)
+    cameras = checked_cameras(camera_locations, len(arrays))
     n = len(arrays)
     for k, r in enumerate(records):
         if not 0 <= r.source < r.target < n:
@@ -88,7 +91,10 @@ def _poses_from_pairs(
     records = [dataclasses.replace(selected(r, option),
                                    determined=not (free[r.source] or free[r.target]))
                for r in records]
-    records, tree, poses = _placed(n, records, centres, voxel_size, option)
+    joinable = free_space_test([a.points for a in arrays], [np.asarray(d.points) for d in downs],
+                               cameras, FREE_SPACE_MARGIN * voxel_size, voxel_size,
+                               option.max_free_space)
+    records, tree, poses = _placed(n, records, centres, voxel_size, option, joinable)
     kept = [r for r in records if r.kept]
     nodes = tuple(k for k in range(n) if poses[k] is not None)
     edges = [(r.source, r.target, r.transformation,
@@ -116,8 +122,8 @@ def _poses_from_pairs(
 
 def _reached(n: int, links: list[tuple[int, int]]) -> set[int]:
     """The clouds a chain of ``links`` (pairs of cloud indices) joins to cloud 0: those
-    :func:`_chained` places along them."""
-    placed = _chained(n, links, dict.fromkeys(links, np.eye(4)))
+    :func:`o3d_spectral.multiway.tree.chained` places along them."""
+    placed = chained(n, links, dict.fromkeys(links, np.eye(4)))
     return {k for k, pose in enumerate(placed) if pose is not None}
 
 
@@ -184,7 +190,7 @@ def tree_weight(record: PairwiseRecord, option: MultiwayOption) -> float:
 
 def _placed(
     n: int, records: list[PairwiseRecord], centres: list[NDArray[np.float64]],
-    voxel_size: float, option: MultiwayOption,
+    voxel_size: float, option: MultiwayOption, joinable: Joinable | None,
 ) -> tuple[list[PairwiseRecord], list[tuple[int, int]], list[NDArray[np.float64] | None]]:
     """The tree of the kept pairs, the poses chained along it, and the records with
     ``kept`` cleared for the pairs that disagree with those poses (:func:`_fits_tree`).
@@ -192,12 +198,16 @@ def _placed(
     A cloud placed by weak tree edges alone (``fit`` under ``option.certain_fit``) while
     its other kept pairs all disagree with it is contradicted: a cloud of another object
     that two scans each match somewhere. Its pairs are dropped and the tree built again,
-    until no cloud is contradicted."""
+    until no cloud is contradicted. A disagreeing pair contradicts only where it offers
+    the cloud another place (:func:`_elsewhere`): not when its other cloud is unplaced,
+    nor when ``joinable`` refuses that place against a placed cloud (its points in space
+    a camera saw empty)."""
     while True:
         kept = [r for r in records if r.kept]
+        transformations = {(r.source, r.target): r.transformation for r in kept}
         tree = maximum_spanning_tree(n, [(r.source, r.target, tree_weight(r, option))
-                                         for r in kept])
-        poses = _chained(n, tree, {(r.source, r.target): r.transformation for r in kept})
+                                         for r in kept], transformations, joinable)
+        poses = chained(n, tree, transformations)
         agree = [r.kept and _fits_tree(r, tree, poses, centres, voxel_size, option)
                  for r in records]
         doubted = set()
@@ -205,7 +215,9 @@ def _placed(
             mine = [(r, a) for r, a in zip(records, agree, strict=True)
                     if r.kept and k in (r.source, r.target)]
             branches = [r for r, _ in mine if (r.source, r.target) in tree]
-            if (len(mine) > len(branches) and not any(a for r, a in mine if r not in branches)
+            others = [a for r, a in mine if r not in branches
+                      and (a or _elsewhere(r, k, poses, joinable))]
+            if (others and not any(others)
                     and all(r.fit < option.certain_fit for r in branches)):
                 doubted.add(k)
         if not doubted:
@@ -214,6 +226,24 @@ def _placed(
                     tree, poses)
         records = [dataclasses.replace(r, kept=r.kept and not {r.source, r.target} & doubted)
                    for r in records]
+
+
+def _elsewhere(
+    record: PairwiseRecord, k: int, poses: list[NDArray[np.float64] | None],
+    joinable: Joinable | None,
+) -> bool:
+    """Whether ``record`` offers cloud ``k`` another place in the model: its other cloud is
+    placed, and the pose it gives ``k`` against it is one ``joinable`` allows against
+    every other placed cloud (any, without ``joinable``)."""
+    other = record.target if record.source == k else record.source
+    if poses[other] is None:
+        return False
+    if joinable is None:
+        return True
+    pose = poses[other] @ (record.transformation if other == record.target
+                           else np.linalg.inv(record.transformation))
+    return all(joinable(k, q, np.linalg.inv(placed) @ pose)
+               for q, placed in enumerate(poses) if q != k and placed is not None)
 
 
 def _agree(
@@ -243,48 +273,6 @@ def _fits_tree(
         return (i, j) in tree
     return _agree(record.transformation, np.linalg.inv(poses[j]) @ poses[i], centres[i],
                   voxel_size, option)
-
-
-def maximum_spanning_tree(
-    n: int, weighted: list[tuple[int, int, float]]
-) -> list[tuple[int, int]]:
-    """Kruskal's maximum spanning forest of ``n`` nodes over the edges ``(i, j, weight)``;
-    ties broken by the nodes' indices. Returns the chosen ``(i, j)``."""
-    parent = list(range(n))
-
-    def root(k: int) -> int:
-        while parent[k] != k:
-            parent[k] = parent[parent[k]]
-            k = parent[k]
-        return k
-
-    tree = []
-    for i, j, _ in sorted(weighted, key=lambda e: (-e[2], e[0], e[1])):
-        a, b = root(i), root(j)
-        if a != b:
-            parent[b] = a
-            tree.append((i, j))
-    return tree
-
-
-def _chained(
-    n: int, tree: list[tuple[int, int]], transformations: dict[tuple[int, int], NDArray]
-) -> list[NDArray[np.float64] | None]:
-    """Each cloud's pose in cloud 0's frame chained along ``tree`` from cloud 0 (None for
-    the clouds it does not reach); ``transformations[(i, j)]`` maps cloud i onto cloud j."""
-    poses: list[NDArray[np.float64] | None] = [None] * n
-    poses[0] = np.eye(4)
-    frontier = [0]
-    while frontier:
-        k = frontier.pop(0)
-        for i, j in tree:
-            if i == k and poses[j] is None:
-                poses[j] = poses[i] @ np.linalg.inv(transformations[(i, j)])
-                frontier.append(j)
-            elif j == k and poses[i] is None:
-                poses[i] = poses[j] @ transformations[(i, j)]
-                frontier.append(i)
-    return poses
 
 
 def _information(

@@ -29,8 +29,10 @@ from ..io.cloud import CloudArrays
 from ..law.prepared import PreparedSource, prepare
 from ..law.prepared_target import PreparedTarget, prepare_target
 from ..registration import registration_spectral_global
-from .graph import checked_clouds, maximum_spanning_tree, poses_from_pairs, selected
+from .graph import checked_clouds, poses_from_pairs, selected
 from .options import MultiwayOption, MultiwayResult, PairwiseRecord
+from .tree import maximum_spanning_tree
+from .visibility import checked_cameras
 
 __all__ = ["registration_multiway", "poses_from_pairs", "pair_list", "maximum_spanning_tree",
            "MultiwayOption", "MultiwayResult", "PairwiseRecord"]
@@ -39,7 +41,8 @@ log = logging.getLogger(__name__)
 
 
 def registration_multiway(
-    clouds: Sequence[object], voxel_size: float, *, option: MultiwayOption | None = None
+    clouds: Sequence[object], voxel_size: float, *, option: MultiwayOption | None = None,
+    camera_locations: Sequence[object | None] | None = None,
 ) -> MultiwayResult:
     """Register ``clouds`` (in any frames, no initial poses) into the first one's frame.
 
@@ -55,7 +58,9 @@ def registration_multiway(
        on the down-sampled clouds;
     3. **tree**: the initial poses chained along a maximum spanning tree of the edges
        weighted by ``fit`` (those not clearly ahead of their ``rival_fit``, then those
-       warned about, last), from the first cloud; clouds it does not reach are
+       warned about, last), from the first cloud; with ``camera_locations``, a join
+       that would put points of one branch's clouds in space another's camera saw
+       empty is passed over; clouds it does not reach are
        ``unconnected``, and those that only chains through warned pairs reach are
        ``doubtful``; the edges that disagree with those poses are dropped (a
        symmetric object's pairs may each be right up to a different symmetry), and a
@@ -81,6 +86,13 @@ def registration_multiway(
         Voxel edge, metres, of every pairwise registration.
     option : MultiwayOption, optional
         Pairs, selection, optimisation, threads and progress.
+    camera_locations : sequence of (array_like, shape (3,)) or None, optional
+        Where each cloud was seen from: its camera's position in the cloud's own frame,
+        metres (``(0, 0, 0)`` for a depth frame or a fragment in its camera's frame);
+        None for a cloud seen from no one place (a merged model). Given, the spanning
+        tree never places a cloud where its points would lie in space another cloud's
+        camera saw empty (``MultiwayOption.max_free_space``): scans of a room whose
+        floor and walls fit as well in the wrong place. None (the default): no test.
 
     Returns
     -------
@@ -93,7 +105,9 @@ def registration_multiway(
     ValueError, TypeError
         For fewer than two clouds, a cloud the registration refuses (the message names
         ``clouds[k]``), clouds whose extents differ by 50x or more (in different units;
-        the message names both clouds and extents), a bad ``voxel_size`` or option.
+        the message names both clouds and extents), a bad ``voxel_size`` or option, or
+        ``camera_locations`` not one position (or None) per cloud (naming
+        ``camera_locations[k]``).
 
     Examples
     --------
@@ -106,13 +120,15 @@ def registration_multiway(
     check_instance("option", option, MultiwayOption)
     option = option or MultiwayOption()
     arrays = checked_clouds(clouds)
+    checked_cameras(camera_locations, len(arrays))  # refused before any work
     sources, targets = _prepared(arrays, voxel_size, option.workers)
     with _quiet_low_fit():
         records = _register_pairs(sources, targets, pair_list(len(arrays), option),
                                   voxel_size, option)
     log.info("%d of %d pairs pass the selection, %d of them odometry-like",
              *_kept_counts(records, option))
-    result = poses_from_pairs(arrays, voxel_size, records, option=option)
+    result = poses_from_pairs(arrays, voxel_size, records, option=option,
+                              camera_locations=camera_locations)
     return dataclasses.replace(result, run_time=time.perf_counter() - start)
 
 
