@@ -17,7 +17,11 @@ one voxel, no rival):
 
 A scan is placed right when its pose is within 5 degrees and 1 cm (a room's fragment:
 10 cm, two voxels) of the truth at its centroid, allowing a model's symmetry group (in
-the first scan's frame: a symmetric object's scans are placed up to it). Prints a
+the first scan's frame: a symmetric object's scans are placed up to it). A turntable
+view and a room's fragment are in their camera's frame: both pipelines are given the
+cameras at the origin (``camera_locations``), and the same pairwise results are placed
+again without them (the ``without cameras`` columns); the dragon's scans, turned, have
+no known camera. Prints a
 Markdown table, writes ``rows.csv`` (one row per scan), ``summary.csv`` and ``table.md``
 to ``--out`` (``docs/data/multiway``:
 ``tools/docs_figures.py`` renders the table of ``docs/multiway.md`` from its
@@ -126,48 +130,69 @@ def fpfh_records(clouds: list, voxel: float, seed: int) -> list:
 
 
 def run_set(clouds: list, truths: list, symmetries: list, voxel: float, pipeline: str,
-            seed: int, option: o3d_spectral.MultiwayOption,
-            max_translation: float) -> tuple[list[dict], float]:
+            seed: int, option: o3d_spectral.MultiwayOption, max_translation: float,
+            sensor_frames: bool) -> tuple[list[dict], float]:
     """One set registered by ``pipeline``: a row per scan (errors, success: within
-    :data:`MAX_ROTATION_DEG` and ``max_translation`` metres) and seconds."""
+    :data:`MAX_ROTATION_DEG` and ``max_translation`` metres) and seconds. With
+    ``sensor_frames`` the cameras are given at the origin, and the row says too whether
+    the same pairs placed the scan right without them (``success_without_cameras``)."""
+    cameras = [np.zeros(3)] * len(clouds) if sensor_frames else None
     start = time.perf_counter()
     if pipeline == "spectral":
-        result = o3d_spectral.registration_multiway(clouds, voxel, option=option)
+        result = o3d_spectral.registration_multiway(clouds, voxel, option=option,
+                                                    camera_locations=cameras)
+        records = list(result.pairs)
     else:
-        result = poses_from_pairs(clouds, voxel, fpfh_records(clouds, voxel, seed),
-                                  option=option)
+        records = fpfh_records(clouds, voxel, seed)
+        result = poses_from_pairs(clouds, voxel, records, option=option,
+                                  camera_locations=cameras)
     seconds = time.perf_counter() - start
+    blind = poses_from_pairs(clouds, voxel, records, option=option) if sensor_frames else None
     rows = []
-    for k, (cloud, pose) in enumerate(zip(clouds, result.poses, strict=True)):
+    for k, cloud in enumerate(clouds):
+        centre = np.asarray(cloud.points).mean(axis=0)
         truth = np.linalg.inv(truths[0]) @ truths[k]
-        rotation = translation = float("nan")
-        if pose is not None:
-            centre = np.asarray(cloud.points).mean(axis=0)
-            rotation = symmetric_rotation_error(pose, truth, symmetries[k])
-            translation = symmetric_translation_error(pose, truth, symmetries[k],
-                                                      center=centre)
+        rotation, translation = _errors(result.poses[k], truth, symmetries[k], centre)
         rows.append({"scan": k, "rotation_error_deg": rotation,
                      "translation_error_m": translation,
-                     "success": bool(rotation < MAX_ROTATION_DEG
-                                     and translation < max_translation),
+                     "success": _right(rotation, translation, max_translation),
                      "unconnected": k in result.unconnected,
-                     "doubtful": k in result.doubtful})
+                     "doubtful": k in result.doubtful,
+                     "success_without_cameras": "" if blind is None else _right(
+                         *_errors(blind.poses[k], truth, symmetries[k], centre),
+                         max_translation)})
     return rows, seconds
+
+
+def _errors(pose: np.ndarray | None, truth: np.ndarray, symmetry: Symmetry,
+            centre: np.ndarray) -> tuple[float, float]:
+    """A scan's rotation (degrees) and translation (metres, at ``centre``) errors up to
+    its ``symmetry``; NaN for a scan not placed."""
+    if pose is None:
+        return float("nan"), float("nan")
+    return (symmetric_rotation_error(pose, truth, symmetry),
+            symmetric_translation_error(pose, truth, symmetry, center=centre))
+
+
+def _right(rotation: float, translation: float, max_translation: float) -> bool:
+    """Within :data:`MAX_ROTATION_DEG` and ``max_translation`` (NaN: not placed)."""
+    return bool(rotation < MAX_ROTATION_DEG and translation < max_translation)
 
 
 def sets(args: argparse.Namespace):
     """Yields (suite, name, seed, clouds, truths, symmetries, voxel, the largest
-    translation error of a scan placed right)."""
+    translation error of a scan placed right, whether each scan is in its camera's
+    frame)."""
     for seed in range(args.seeds):
         yield ("dragon", f"seed {seed}", seed, *dragon_set(seed, args.limit_scans or VIEWS),
-               DRAGON_VOXEL, MAX_TRANSLATION_M)
+               DRAGON_VOXEL, MAX_TRANSLATION_M, False)
     for m, name in enumerate(model_names()[:args.models]):
         yield ("turntable", name, m, *turntable_set(name, m, args.limit_scans or VIEWS),
-               TURNTABLE_VOXEL, MAX_TRANSLATION_M)
+               TURNTABLE_VOXEL, MAX_TRANSLATION_M, True)
     for k in range(args.rooms):
         yield ("room", f"room {300 + k}", 300 + k,
                *room_set(300 + k, args.limit_scans or RoomOptions.fragments), ROOM_VOXEL,
-               ROOM_MAX_TRANSLATION_M)
+               ROOM_MAX_TRANSLATION_M, True)
 
 
 def summary(rows: list[dict], times: dict) -> list[dict]:
@@ -176,16 +201,20 @@ def summary(rows: list[dict], times: dict) -> list[dict]:
     out = []
     for key, group in itertools.groupby(rows, lambda r: (r["suite"], r["set"], r["pipeline"])):
         group = list(group)
+        blind = [r["success_without_cameras"] for r in group]
         out.append({"suite": key[0], "set": key[1], "pipeline": key[2],
                     "right": sum(r["success"] for r in group), "scans": len(group),
-                    "seconds": times[key], **_doubts(group)})
+                    "seconds": times[key], **_doubts(group),
+                    "right_without_cameras": "" if "" in blind else sum(blind)})
     for suite, pipeline in dict.fromkeys((r["suite"], r["pipeline"]) for r in rows):
         group = [s for s in out if (s["suite"], s["pipeline"]) == (suite, pipeline)]
+        blind = [s["right_without_cameras"] for s in group]
         out.append({"suite": suite, "set": "all", "pipeline": pipeline,
                     "right": sum(s["right"] for s in group),
                     "scans": sum(s["scans"] for s in group),
                     "seconds": sum(s["seconds"] for s in group),
-                    **{k: sum(s[k] for s in group) for k in DOUBTS}})
+                    **{k: sum(s[k] for s in group) for k in DOUBTS},
+                    "right_without_cameras": "" if "" in blind else sum(blind)})
     return out
 
 
@@ -206,8 +235,10 @@ def table(rows: list[dict], command: str, commit: str) -> str:
     """The Markdown table: one line per suite and set, both pipelines side by side."""
     by_key = {(s["suite"], s["set"], s["pipeline"]): s for s in rows}
     lines = ["| suite | set | " + " | ".join(f"{p}: right | {p}: s" for p in PIPELINES)
-             + " | spectral: doubtful (wrong) | spectral: wrong, not doubtful |",
-             "|---|---|" + "---:|---:|" * len(PIPELINES) + "---:|---:|"]
+             + " | spectral: doubtful (wrong) | spectral: wrong, not doubtful | "
+             + " | ".join(f"{p}: right without cameras" for p in PIPELINES) + " |",
+             "|---|---|" + "---:|---:|" * len(PIPELINES) + "---:|---:|"
+             + "---:|" * len(PIPELINES)]
     suites = list(dict.fromkeys(s["suite"] for s in rows))
     keys = sorted(dict.fromkeys((s["suite"], s["set"]) for s in rows),
                   key=lambda key: (suites.index(key[0]), key[1] == "all"))
@@ -220,6 +251,10 @@ def table(rows: list[dict], command: str, commit: str) -> str:
         s = by_key.get((suite, name, "spectral"))
         cells += ([f"{s['doubtful']} ({s['doubtful_wrong']})", str(s["wrong_undoubted"])]
                   if s else ["-", "-"])
+        for pipeline in PIPELINES:
+            s = by_key.get((suite, name, pipeline))
+            blind = "" if s is None else s["right_without_cameras"]
+            cells.append("-" if blind == "" else f"{blind}/{s['scans']}")
         label = f"**{name}**" if name == "all" else name
         lines.append(f"| {suite} | {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + f"\n\nProduced by `{command}` at commit {commit}.\n"
@@ -255,10 +290,11 @@ def main(argv: list[str] | None = None) -> int:
     command = re.sub(r"--out \S+", "--out OUT", command)
     commit, rows, times = _commit(), [], {}
     option = o3d_spectral.MultiwayOption(workers=args.workers, refine=args.refine)
-    for suite, name, seed, clouds, truths, symmetries, voxel, max_translation in sets(args):
+    for (suite, name, seed, clouds, truths, symmetries, voxel, max_translation,
+         sensor_frames) in sets(args):
         for pipeline in args.pipelines:
             scans, seconds = run_set(clouds, truths, symmetries, voxel, pipeline, seed,
-                                     option, max_translation)
+                                     option, max_translation, sensor_frames)
             times[(suite, name, pipeline)] = seconds
             rows += [{"suite": suite, "set": name, "pipeline": pipeline, **r} for r in scans]
             print(f"{suite} {name} {pipeline}: {sum(r['success'] for r in scans)}/"

@@ -760,10 +760,15 @@ def multiway(source: str = "multiway") -> str:
         spectral = rows[suite, name, "spectral"]
         cells += [f"{spectral['doubtful']} ({spectral['doubtful_wrong']})",
                   spectral["wrong_undoubted"]]
+        for pipeline in MULTIWAY_PIPELINES:
+            r = rows[suite, name, pipeline]
+            blind = r.get("right_without_cameras", "")
+            cells.append(f"{blind}/{r['scans']}" if blind else "-")
         lines.append([suite, f"**{name}**" if name == "all" else name, *cells])
     return "\n".join([
         table(["suite", "set", *(f"{p}: {k}" for p in MULTIWAY_PIPELINES for k in ("right", "s")),
-               "spectral: doubtful (wrong)", "spectral: wrong, not doubtful"], lines),
+               "spectral: doubtful (wrong)", "spectral: wrong, not doubtful",
+               *(f"{p}: right without cameras" for p in MULTIWAY_PIPELINES)], lines),
         "",
         provenance(source) + " Every scan's errors: "
         f"`docs/data/{Path(sources()[source]['file']).parent}/rows.csv`.",
