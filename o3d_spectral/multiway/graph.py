@@ -215,10 +215,10 @@ def _placed(
             mine = [(r, a) for r, a in zip(records, agree, strict=True)
                     if r.kept and k in (r.source, r.target)]
             branches = [r for r, _ in mine if (r.source, r.target) in tree]
-            others = [a for r, a in mine if r not in branches
-                      and (a or _elsewhere(r, k, poses, joinable))]
-            if (others and not any(others)
-                    and all(r.fit < option.certain_fit for r in branches)):
+            # Its other pairs that say something: agree with the tree, or offer elsewhere.
+            said = [a for r, a in mine if r not in branches
+                    and (a or _elsewhere(r, k, poses, joinable))]
+            if said and not any(said) and all(r.fit < option.certain_fit for r in branches):
                 doubted.add(k)
         if not doubted:
             return ([dataclasses.replace(r, kept=a) for r, a in zip(records, agree,
