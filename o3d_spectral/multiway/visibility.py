@@ -96,11 +96,13 @@ def free_space_test(
     cameras: Sequence[NDArray[np.float64] | None], margin: float, voxel_size: float,
     max_share: float,
 ) -> Joinable | None:
-    """Whether two clouds may lie as a spanning tree would place them: at most
-    ``max_share`` of either's ``tested`` points (a down-sample) in the space its
-    ``cameras`` position saw empty before the other's ``points`` (:func:`free_space_violation`,
-    ``margin`` metres beyond its surface; direction bins one ``voxel_size`` wide at the
-    cloud's median range). None when fewer than two clouds have a camera: nothing to test."""
+    """The test of :func:`o3d_spectral.multiway.tree.maximum_spanning_tree`: clouds ``a``
+    and ``b`` may lie as ``a_to_b`` places them when at most ``max_share`` of either's
+    ``tested`` points (its down-sample) lie in space the other's camera saw empty, over
+    ``margin`` metres short of the surface it saw in its ``points``
+    (:func:`free_space_violation`; direction bins one ``voxel_size`` wide at the cloud's
+    median range). A cloud whose camera is None is never refused; None when fewer than
+    two clouds have a camera: nothing to test."""
     if sum(c is not None for c in cameras) < 2:
         return None
     images = [None if camera is None else range_image(p, camera, _bin_width(p, camera,
