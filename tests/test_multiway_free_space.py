@@ -90,3 +90,19 @@ def test_kruskal_passes_over_a_join_refused_and_takes_the_next():
     # Each join tests every cloud of one tree against every cloud of the other, and
     # stops at the first refusal.
     assert tested == [(0, 1), (0, 2), (1, 2), (0, 3), (0, 3), (1, 3), (2, 3)]
+
+
+@pytest.mark.parametrize(("cameras", "match"), [
+    ([np.zeros(3)] * 2, r"one position \(or None\) per cloud: 3 clouds, got 2"),
+    ([np.zeros(3), [0.0, np.inf, 0.0], None], r"camera_locations\[1\] must be finite"),
+])
+def test_the_public_call_refuses_camera_locations_before_any_work(cameras, match, monkeypatch):
+    from o3d_spectral.multiway import registration
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the clouds were prepared before camera_locations was checked")
+
+    monkeypatch.setattr(registration, "prepare", no_work)
+    scans, _, _ = scans_and_records(wrong_fit=0.95)
+    with pytest.raises(ValueError, match=match):
+        o3d_spectral.registration_multiway(scans, VOXEL, camera_locations=cameras)
