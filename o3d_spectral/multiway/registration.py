@@ -86,13 +86,14 @@ def registration_multiway(
         Voxel edge, metres, of every pairwise registration.
     option : MultiwayOption, optional
         Pairs, selection, optimisation, threads and progress.
-    camera_locations : sequence of (array_like, shape (3,)) or None, optional
-        Where each cloud was seen from: its camera's position in the cloud's own frame,
-        metres (``(0, 0, 0)`` for a depth frame or a fragment in its camera's frame);
-        None for a cloud seen from no one place (a merged model). Given, the spanning
-        tree never places a cloud where its points would lie in space another cloud's
-        camera saw empty (``MultiwayOption.max_free_space``): scans of a room whose
-        floor and walls fit as well in the wrong place. None (the default): no test.
+    camera_locations : sequence of (array_like of shape (3,), or None), optional
+        Where each cloud was seen from, one entry per cloud (an array of shape (n, 3)
+        will do): its camera's position in the cloud's own frame, metres (``(0, 0, 0)``
+        for a depth frame or a fragment in its camera's frame); None for a cloud seen
+        from no one place (a merged model). Given, the spanning tree places no cloud
+        where more than ``MultiwayOption.max_free_space`` of its points would lie in
+        space another cloud's camera saw empty: scans of a room whose floor and walls
+        fit as well in the wrong place. None (the default): no test.
 
     Returns
     -------
