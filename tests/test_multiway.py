@@ -178,6 +178,8 @@ def test_reconstruct_gives_the_cameras_at_the_origin_with_sensor_frames(
     assert main(["-q", "reconstruct", *map(str, paths), "--voxel-size", "0.008", "--out",
                  str(tmp_path / "out"), *flag]) == 0
     assert given == [cameras]
+    written = json.loads((tmp_path / "out" / "poses.json").read_text())
+    assert written["sensor_frames"] is bool(flag)
 
 
 @pytest.mark.parametrize("arguments", [

@@ -3,8 +3,9 @@
 Registers the scans into the first one's frame with
 :func:`o3d_spectral.registration_multiway` (no initial poses) and writes to ``DIR``:
 ``merged.ply`` (every placed scan moved by its pose, merged, thinned to half the voxel),
-``poses.json`` (each file's 4x4 pose, the unconnected and the doubtful files, the pairs)
-and ``merged.png`` (the merged cloud coloured by scan, seen along its principal axes).
+``poses.json`` (the settings, each file's 4x4 pose, the unconnected and the doubtful
+files, the pairs) and ``merged.png`` (the merged cloud coloured by scan, seen along its
+principal axes).
 The three are written to temporary files in ``DIR`` and renamed once all are written:
 a failed run leaves none of them half written; a previous run's three wait in
 ``DIR/previous_run/`` until the new ones are complete, so that a run interrupted leaves
@@ -177,10 +178,12 @@ def _write_ply(path: Path, cloud) -> None:
 
 
 def _summary(args: argparse.Namespace, result) -> dict:
-    """The poses, the unconnected and the doubtful scans and the pairs as JSON values."""
+    """The settings, the poses, the unconnected and the doubtful scans and the pairs as
+    JSON values."""
     names = [str(p) for p in args.scans]
     return {
         "voxel_size": args.voxel_size,
+        "sensor_frames": args.sensor_frames,
         "poses": {name: None if pose is None else pose.tolist()
                   for name, pose in zip(names, result.poses, strict=True)},
         "unconnected": [names[k] for k in result.unconnected],
