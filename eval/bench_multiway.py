@@ -29,7 +29,7 @@ to ``--out`` (``docs/data/multiway``:
 
     python eval/bench_multiway.py --out docs/data/multiway
     python eval/bench_multiway.py --limit-scans 3 --models 1 --seeds 1 --out /tmp/mw
-    python eval/bench_multiway.py --seeds 0 --models 0 --rooms 1 --out docs/data/multiway_room
+    python eval/bench_multiway.py --seeds 0 --models 0 --rooms 6 --out docs/data/multiway_room
 """
 
 from __future__ import annotations

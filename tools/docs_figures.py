@@ -762,7 +762,7 @@ def multiway(source: str = "multiway") -> str:
                   spectral["wrong_undoubted"]]
         for pipeline in MULTIWAY_PIPELINES:
             r = rows[suite, name, pipeline]
-            blind = r.get("right_without_cameras", "")
+            blind = r["right_without_cameras"]
             cells.append(f"{blind}/{r['scans']}" if blind else "-")
         lines.append([suite, f"**{name}**" if name == "all" else name, *cells])
     return "\n".join([
