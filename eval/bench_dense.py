@@ -2,7 +2,10 @@
 
 On the instances of ``eval/bench_speed.py`` (its groups and options), runs on each:
 
-* ``adaptive``: ``registration_spectral_global`` at its defaults;
+* ``adaptive``: ``registration_spectral_global`` with ``GlobalSearchOption(rotations=
+  "adaptive")``;
+* ``escalating``: the same at its defaults on the CPU (``rotations="escalating"``: the
+  adaptive search, and the dense one too where its pose may be wrong);
 * ``dense``: the same with ``GlobalSearchOption(rotations="dense")`` (4608 rotations), and
   ``dense_N`` for each ``N`` of ``--budgets`` (``dense_rotations=N``);
 * ``lean``: the lean FPFH-RANSAC that every ratio of ``bench_speed.py`` divides by
@@ -16,7 +19,8 @@ every method (``--all-cores``: the spectral calls on every core, FPFH-RANSAC's O
 its own). Success as ``bench_speed.py`` scores it (symmetry-aware, 5 degrees and 1 cm).
 
 Reports per group and variant: n, success, median seconds (every call, right or wrong),
-and the dense search's stage ``sweep`` (its median seconds); writes ``rows.csv``,
+and the dense sweep's median seconds (the dense calls' stage ``sweep``, the escalating
+calls' ``dense_sweep``); writes ``rows.csv``,
 ``summary.csv`` and ``summary.md`` to ``--out``, and with ``--figure`` the success of each
 variant against its median time (a Pareto view in the manner of Deep Global
 Registration's), one panel per kind of problem as ``frontier.png`` and one per group as
@@ -60,6 +64,7 @@ def spectral(rotations: str, count: int | None = None):
     """A spectral call of a task with the search's ``rotations`` (and ``dense_rotations``)."""
     settings = {} if count is None else {"dense_rotations": count}
     workers = 1 if speed.ONE_THREAD else None
+    sweep_stage = "dense_sweep" if rotations == "escalating" else "sweep"
 
     def call(task: speed.Task) -> tuple[np.ndarray, dict]:
         search = o3d_spectral.GlobalSearchOption(rotations=rotations, workers=workers,
@@ -67,7 +72,7 @@ def spectral(rotations: str, count: int | None = None):
         result = o3d_spectral.registration_spectral_global(task.source, task.target,
                                                            task.voxel, search=search)
         return np.asarray(result.transformation), {
-            "sweep_s": result.stage_times.get("sweep", 0.0), "confidence": result.confidence}
+            "sweep_s": result.stage_times.get(sweep_stage, 0.0), "confidence": result.confidence}
 
     return call
 
@@ -87,7 +92,8 @@ def lean_ransac(max_iteration: int, confidence: float):
 
 def variants(budgets: list[int], ransac: list[str]) -> dict[str, object]:
     """The calls compared, by name (the module docstring)."""
-    calls = {"adaptive": spectral("adaptive"), "dense": spectral("dense")}
+    calls = {"adaptive": spectral("adaptive"), "escalating": spectral("escalating"),
+             "dense": spectral("dense")}
     calls |= {f"dense_{n}": spectral("dense", n) for n in budgets}
     defaults = tutorial.RANSAC
     calls["lean"] = lean_ransac(defaults["max_iteration"], defaults["confidence"])
@@ -144,8 +150,8 @@ def markdown(summary: list[dict], names: list[str]) -> str:
 def figure(summary: list[dict], path: Path, panels: dict[str, tuple[str, ...]]) -> None:
     """Success against median time, one panel per entry of ``panels`` (its groups' calls
     pooled, the median of their medians), one curve per family: the adaptive search, the
-    dense search at each count, the lean FPFH-RANSAC at each setting, each point
-    labelled."""
+    escalating one (the CPU's default), the dense search at each count, the lean
+    FPFH-RANSAC at each setting, each point labelled."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,6 +167,7 @@ def figure(summary: list[dict], path: Path, panels: dict[str, tuple[str, ...]]) 
     for ax, title in zip(axes.flat, titles, strict=False):
         picked = [s for s in summary if s["group"] in panels[title]]
         for family, marker, label in (("adaptive", "o", "spectral, adaptive"),
+                                      ("escalating", "D", "spectral, escalating"),
                                       ("dense", "s", "spectral, dense"),
                                       ("lean", "^", "lean FPFH-RANSAC")):
             points = []

@@ -184,7 +184,11 @@ def registration_spectral_global(
     8. **second_opinions**: where the search ran and the returned pose may be wrong (its
        calibrated confidence under one half), the other climbs' poses climbed on,
        polished and measured, and the most confident returned
-       (:func:`o3d_spectral.opinions.second_opinion`; ``search.second_opinions``).
+       (:func:`o3d_spectral.opinions.second_opinion`; ``search.second_opinions``);
+    9. **dense_sweep**: on the CPU by default (``search.rotations="escalating"``), not
+       in a scene, where the pose may still be wrong: SO(3) swept evenly and ranked up to
+       the voxel's own grid (:mod:`o3d_spectral.search.dense`), stages 3-8 run again from
+       that ranking, and the more confident of the two results returned.
 
     Against a single view the search correlates the view with the model as the sensor
     would see it; against a whole scene it focuses on the scene's normals where the
@@ -246,6 +250,28 @@ def registration_spectral_global(
         with clock.stage("sweep"):  # two scans: the sweep of SO(3) joins the candidates
             ranking = finder.rank(sweep=True)
         confirmed = _confirmed(finder, ranking, clock)
+    result = _judged(run, finder, ranking, confirmed, clock, search, refinement,
+                     max_correspondence_distance)
+    if finder.escalates and may_be_wrong(result.confidence):
+        dense = finder.densified()
+        with clock.stage("dense_sweep"):
+            ranking = dense.rank(sweep=True)
+        other = _judged(run, dense, ranking, _confirmed(dense, ranking, clock), clock, search,
+                        refinement, max_correspondence_distance)
+        if other.confidence > result.confidence:
+            result = other
+    result.stage_times = clock.times
+    return result
+
+
+def _judged(
+    run: Run, finder: GlobalSearch, ranking: Ranking, confirmed: Confirmation | None,
+    clock: StageClock, search: GlobalSearchOption, refinement: RefinementOption | None,
+    max_correspondence_distance: float | None,
+) -> SpectralRegistrationResult:
+    """The result of one search from its ``ranking``: the ``confirmed`` pose, or else the
+    climbs' and the ascent's; polished, judged, and where it may be wrong, turned and
+    given second opinions (stages 4-8 of :func:`registration_spectral_global`)."""
     if confirmed is not None:
         best, pose, result = placed_result(run, confirmed)
     else:
@@ -268,7 +294,6 @@ def registration_spectral_global(
         with clock.stage("second_opinions"):
             result = second_opinion(run, result, climbed, search.second_opinions, refinement,
                                     max_correspondence_distance)
-    result.stage_times = clock.times
     return result
 
 

@@ -67,6 +67,36 @@ def test_the_first_dense_candidate_is_the_truth_where_the_adaptive_search_misses
     assert np.rad2deg(error) < 5.0
 
 
+def _registered(case, rotations: str) -> o3d_spectral.SpectralRegistrationResult:
+    search = o3d_spectral.GlobalSearchOption(rotations=rotations, workers=2)
+    return o3d_spectral.registration_spectral_global(case.source, case.target, 0.005,
+                                                     search=search)
+
+
+def test_escalating_adds_the_dense_search_where_the_adaptive_pose_may_be_wrong(far_scans):
+    """The adaptive search's pose is in doubt (and wrong): the escalating search runs the
+    dense one too, sharing what it measured, and returns the more confident result, the
+    dense search's to the bit."""
+    adaptive, dense, escalating = (_registered(far_scans, r)
+                                   for r in ("adaptive", "dense", "escalating"))
+    assert adaptive.confidence < 0.5 < dense.confidence
+    assert not is_success(*case_errors(np.asarray(adaptive.transformation), far_scans))
+    np.testing.assert_array_equal(escalating.transformation, dense.transformation)
+    assert escalating.confidence == dense.confidence
+    assert "dense_sweep" in escalating.stage_times
+    assert "dense_sweep" not in adaptive.stage_times | dense.stage_times
+
+
+def test_escalating_is_the_adaptive_search_where_its_pose_is_not_in_doubt():
+    scans = next(c for c in load_cases(["dragon_24"]) if c.name == "dragon_0_24")
+    case, _ = randomly_rotated(scans, seed=rotation_seed(scans.name, 0))
+    adaptive, escalating = (_registered(case, r) for r in ("adaptive", "escalating"))
+    assert adaptive.confidence >= 0.5
+    np.testing.assert_array_equal(escalating.transformation, adaptive.transformation)
+    assert escalating.confidence == adaptive.confidence
+    assert "dense_sweep" not in escalating.stage_times
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("pair, rotation", [
     ("dragon_0_120", 0),
@@ -79,13 +109,11 @@ def test_the_dense_search_registers_scans_120_degrees_apart(pair, rotation):
     case, _ = randomly_rotated(scans, seed=rotation_seed(scans.name, rotation))
 
     def registered(rotations: str) -> bool:
-        search = o3d_spectral.GlobalSearchOption(rotations=rotations)
-        result = o3d_spectral.registration_spectral_global(case.source, case.target, 0.005,
-                                                           search=search)
+        result = _registered(case, rotations)
         assert "sweep" in result.stage_times
         return is_success(*case_errors(np.asarray(result.transformation), case))
 
-    assert registered("dense") and not registered("adaptive")
+    assert registered("dense") and registered("escalating") and not registered("adaptive")
 
 
 @pytest.mark.parametrize("field, value, error", [

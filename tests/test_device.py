@@ -199,10 +199,10 @@ def test_a_global_call_on_cuda_registers(pair):
     assert rotation_error(result.transformation, truth) < 2.0
 
 
-def test_auto_is_dense_on_a_gpu_and_adaptive_on_the_cpu():
+def test_auto_is_dense_on_a_gpu_and_escalating_on_the_cpu():
     auto = o3d_spectral.GlobalSearchOption()
     assert auto.rotations == "auto"
-    assert (auto.sweep_on(True), auto.sweep_on(False)) == ("dense", "adaptive")
+    assert (auto.sweep_on(True), auto.sweep_on(False)) == ("dense", "escalating")
     chosen = o3d_spectral.GlobalSearchOption(rotations="adaptive")
     assert chosen.sweep_on(True) == "adaptive"
 

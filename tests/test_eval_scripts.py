@@ -197,11 +197,11 @@ def test_bench_dense(tmp_path):
     printed = run("bench_dense.py", "--groups", "turntable_45", "--limit", 1, "--budgets", 300,
                   "--ransac", "100:0.9", "--figure", "--out", tmp_path, cwd=tmp_path)
     rows = read_csv(tmp_path / "rows.csv")
-    assert [r["variant"] for r in rows] == ["adaptive", "dense", "dense_300", "lean",
-                                            "lean_100_0.9"]
+    assert [r["variant"] for r in rows] == ["adaptive", "escalating", "dense", "dense_300",
+                                            "lean", "lean_100_0.9"]
     assert all(float(r["seconds"]) > 0 and r["success"] in ("True", "False") for r in rows)
     summary = read_csv(tmp_path / "summary.csv")
-    assert [(s["group"], s["n"]) for s in summary] == [("turntable_45", "1")] * 5
+    assert [(s["group"], s["n"]) for s in summary] == [("turntable_45", "1")] * 6
     assert table_rows(printed, "turntable_45")
     again = tmp_path / "again"
     run("bench_dense.py", "--figure-from", tmp_path / "summary.csv", "--out", again,

@@ -19,9 +19,11 @@ __all__ = ["StageClock", "GLOBAL_STAGES", "LOCAL_STAGES"]
 #: The stages of :func:`o3d_spectral.registration_spectral_global`, in the order they can
 #: run (a call runs a subset: ``confirm`` not in a scene, ``sweep`` and ``ascent`` between
 #: two scans only, ``climbs`` where nothing was confirmed, ``turns`` where the pose may be
-#: wrong, ``second_opinions`` where the climbed pose still may be).
+#: wrong, ``second_opinions`` where the climbed pose still may be, ``dense_sweep`` where
+#: it still may be on the CPU, after which the stages from ``confirm`` on can run again and
+#: add up).
 GLOBAL_STAGES = ("prepare", "candidates", "confirm", "sweep", "climbs", "ascent", "polish",
-                 "turns", "second_opinions")
+                 "turns", "second_opinions", "dense_sweep")
 #: The stages of :func:`o3d_spectral.registration_spectral`.
 LOCAL_STAGES = ("prepare", "law", "polish")
 

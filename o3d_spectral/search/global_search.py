@@ -16,7 +16,10 @@ turn:
 4. :meth:`GlobalSearch.ascend` — between two scans, the best poses turned to where the
    phase correlation's peak is highest (:mod:`o3d_spectral.search.ascent`);
 5. :meth:`GlobalSearch.closer_placed` — after the polish, the best placed pose as the
-   confirmation polished it, where it lies clearly closer to the fixed cloud.
+   confirmation polished it, where it lies clearly closer to the fixed cloud;
+6. :meth:`GlobalSearch.densified` — where the result may be wrong and the search
+   :attr:`~GlobalSearch.escalates`, the same search with the dense sweep, its stages run
+   again from the ranking on.
 
 Which stages run, and how, follows the :class:`~o3d_spectral.search.situation.Situation`
 decided once from the clouds. What the stages measure is kept in one
@@ -26,6 +29,7 @@ only what is new.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
@@ -102,7 +106,7 @@ class GlobalSearch:
     ) -> None:
         self.stepper, self.moving, self.target = stepper, moving, target
         self.option, self.situation = option, situation
-        self.rotations = option.sweep_on(stepper.device.gpu)  # "adaptive" or "dense"
+        self.rotations = option.sweep_on(stepper.device.gpu)  # "auto" resolved
         self.state = SearchState()
 
     @property
@@ -113,6 +117,20 @@ class GlobalSearch:
         if self.rotations == "dense":
             return not self.situation.scene
         return self.situation.two_scans and self.option.sweep_rotations > 0
+
+    @property
+    def escalates(self) -> bool:
+        """Whether a doubtful result of this search is searched again by
+        :meth:`densified`: :attr:`rotations` ``"escalating"``, and not in a scene (where
+        the dense search does not sweep)."""
+        return self.rotations == "escalating" and not self.situation.scene
+
+    def densified(self) -> GlobalSearch:
+        """This search as the dense one (:attr:`rotations` ``"dense"``), sharing what it
+        has measured: its candidates, placements and polished fits are not made again."""
+        dense = copy.copy(self)  # the same state and fixed cloud
+        dense.rotations = "dense"
+        return dense
 
     @property
     def confirms(self) -> bool:

@@ -62,17 +62,21 @@ class GlobalSearchOption:
         Between two single views: rotations spread evenly over SO(3), >= 0 (those that
         keep the two sensors within 110 degrees are tried), placed on a coarse grid, the
         best 16 kept as more candidates; 0 tries none.
-    rotations : {"auto", "adaptive", "dense"}, default "auto"
+    rotations : {"auto", "adaptive", "dense", "escalating"}, default "auto"
         How SO(3) is swept where the first candidates are not confirmed. ``"auto"``:
         ``"dense"`` where the correlations run on a GPU (the call's ``device``),
-        ``"adaptive"`` on the CPU (:meth:`sweep_on`). ``"adaptive"``:
+        ``"escalating"`` on the CPU (:meth:`sweep_on`). ``"adaptive"``:
         between two single views, ``sweep_rotations`` rotations ranked on a coarse grid;
         in no other case. ``"dense"``: between two single views and for an object
         against a view or model of it (not in a scene), ``dense_rotations`` even
         rotations ranked coarse to fine up to the voxel's own grid and the best refined
         there (:mod:`o3d_spectral.search.dense`): more calls right where the clouds
         share little of their normals (scans far apart), at seconds a call on a few
-        cores.
+        cores. ``"escalating"``: ``"adaptive"`` first; where its pose may be wrong (its
+        calibrated confidence under one half) and the dense search applies, the dense
+        search too, and the more confident of the two results returned: the dense
+        search's successes at about the adaptive search's time, since calls whose pose
+        is not in doubt pay nothing more.
     dense_rotations : int, default 4608
         With ``rotations="dense"``: the even rotations sampled, >= 1 (4608: every
         rotation within about 13 degrees of one, 7 at the median; the peak the search
@@ -141,7 +145,7 @@ class GlobalSearchOption:
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
-        check_choice("rotations", self.rotations, ("auto", "adaptive", "dense"))
+        check_choice("rotations", self.rotations, ("auto", "adaptive", "dense", "escalating"))
         check_int("dense_rotations", self.dense_rotations, low=1)
         check_int("second_opinions", self.second_opinions, low=0)
         check_int("turns", self.turns, low=0)
@@ -155,11 +159,11 @@ class GlobalSearchOption:
 
     def sweep_on(self, gpu: bool) -> str:
         """The sweep of SO(3) on a device: ``rotations``, ``"auto"`` resolved (``"dense"``
-        on a GPU, where thousands of correlations take milliseconds; ``"adaptive"`` on
-        the CPU, where they take seconds)."""
+        on a GPU, where thousands of correlations take milliseconds; ``"escalating"`` on
+        the CPU, where they take seconds and are spent only on doubtful poses)."""
         if self.rotations != "auto":
             return self.rotations
-        return "dense" if gpu else "adaptive"
+        return "dense" if gpu else "escalating"
 
     def check_memory(self, option: SpectralRegistrationOption) -> None:
         """``ValueError`` when the SO(3) correlation grid (complex, ``samples^3``, three
