@@ -13,6 +13,7 @@ import o3d_spectral
 from o3d_spectral.cli import main
 from o3d_spectral.common.pose_errors import rotation_error, translation_error
 from o3d_spectral.harness import real
+from o3d_spectral.multiway import registration as multiway_registration
 from o3d_spectral.multiway.graph import tree_weight
 from o3d_spectral.multiway.registration import poses_from_pairs
 from o3d_spectral.synthetic.models import model_path
@@ -111,6 +112,28 @@ def test_options_are_checked_naming_the_field():
         o3d_spectral.MultiwayOption(min_fit=1.5)
     with pytest.raises(TypeError, match="workers"):
         o3d_spectral.MultiwayOption(workers=1.5)
+    with pytest.raises(TypeError, match="search"):
+        o3d_spectral.MultiwayOption(search="dense")
+
+
+@pytest.mark.parametrize("search", [None, o3d_spectral.GlobalSearchOption(rotations="dense")])
+def test_the_pairwise_calls_search_as_the_option_says(monkeypatch, search):
+    """Adaptive by default (most pairs of an unordered set share nothing, and the single
+    call's CPU default would send each to the dense search too); as given otherwise."""
+    given = []
+    registration = multiway_registration.registration_spectral_global
+
+    def spied(*arguments, **options):
+        given.append(options["search"])
+        return registration(*arguments, **options)
+
+    monkeypatch.setattr(multiway_registration, "registration_spectral_global", spied)
+    option = (o3d_spectral.MultiwayOption() if search is None
+              else o3d_spectral.MultiwayOption(search=search))
+    clouds, _ = turned_dragon((0, 24), seed=3)
+    o3d_spectral.registration_multiway(clouds, 0.008, option=option)
+    expected = search or o3d_spectral.GlobalSearchOption(rotations="adaptive")
+    assert given == [expected]
 
 
 @pytest.mark.slow

@@ -9,8 +9,9 @@ import numpy as np
 import open3d as o3d
 from numpy.typing import NDArray
 
-from ..common.checks import check_bool, check_int, check_number
+from ..common.checks import check_bool, check_instance, check_int, check_number
 from ..evidence.confidence import WARN_BELOW
+from ..search.options import GlobalSearchOption
 
 __all__ = ["MultiwayOption", "PairwiseRecord", "MultiwayResult"]
 
@@ -84,6 +85,13 @@ class MultiwayOption:
         not lower their errors (``docs/multiway.md``).
     refine_min_fitness : float, default 0.3
         See ``refine``.
+    search : GlobalSearchOption, default ``GlobalSearchOption(rotations="adaptive")``
+        The search of each pairwise :func:`o3d_spectral.registration_spectral_global`.
+        Adaptive, not the single call's ``"auto"``: in an unordered set most pairs share
+        nothing and each of those is doubted, which on the CPU escalates it to the dense
+        search; on ``eval/bench_multiway.py`` at commit 6c1e8cf, against the stored runs
+        of 6f89d47 and 06ce43f, that took the dragon's scans 84 s against 41 and room
+        300's fragments 427 s against 162, and placed the same scans right.
     workers : int or None, default None
         Threads the pairwise registrations run on (all cores when None). The result is
         the same whatever the number.
@@ -107,6 +115,7 @@ class MultiwayOption:
     max_free_space: float = 0.05
     refine: bool = False
     refine_min_fitness: float = 0.3
+    search: GlobalSearchOption = GlobalSearchOption(rotations="adaptive")
     workers: int | None = None
     progress: Callable[[int, int], None] | None = None
 
@@ -122,6 +131,7 @@ class MultiwayOption:
         for name in ("distance_voxels", "cycle_voxels"):
             check_number(name, getattr(self, name), low=0.0, low_open=True)
         check_bool("refine", self.refine)
+        check_instance("search", self.search, GlobalSearchOption, optional=False)
         check_int("workers", self.workers, low=1, optional=True)
         if self.progress is not None and not callable(self.progress):
             raise TypeError(f"progress must be callable or None, got "

@@ -189,7 +189,8 @@ def _register_pairs(
 
     def register(pair: tuple[int, int]) -> PairwiseRecord:
         i, j = pair
-        result = registration_spectral_global(sources[i], targets[j], voxel_size)
+        result = registration_spectral_global(sources[i], targets[j], voxel_size,
+                                              search=option.search)
         if option.progress is not None:
             with lock:
                 done[0] += 1
