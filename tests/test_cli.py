@@ -69,6 +69,31 @@ def test_register_saves_the_moved_source_and_takes_viewpoints(tmp_path, capsys):
     assert "--target-viewpoint" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("flag", "rotations"), [([], "auto"), (["--rotations", "dense"], "dense"),
+                                               (["--rotations", "adaptive"], "adaptive")])
+def test_register_passes_the_sweep_of_so3_to_the_global_call(
+    tmp_path, monkeypatch, capsys, flag, rotations,
+):
+    given = []
+    registration = o3d_spectral.registration_spectral_global
+
+    def spied(*arguments, **options):
+        given.append(options["search"].rotations)
+        return registration(*arguments, **options)
+
+    monkeypatch.setattr(o3d_spectral, "registration_spectral_global", spied)
+    source = sample_model("mustard_bottle", 3000)
+    o3d.io.write_point_cloud(str(tmp_path / "source.ply"), source)
+    o3d.io.write_point_cloud(str(tmp_path / "target.ply"), source)
+    assert main(["register", str(tmp_path / "source.ply"), str(tmp_path / "target.ply"),
+                 "--voxel-size", "0.008", *flag]) == 0
+    assert given == [rotations]
+    capsys.readouterr()
+    assert main(["register", "a.ply", "b.ply", "--voxel-size", "0.008", "--rotations",
+                 "fast"]) == 2
+    assert "--rotations" in capsys.readouterr().err
+
+
 def test_register_reports_bad_input(tmp_path, capsys):
     """A failed run exits 1 with one line naming the file; the traceback only with -vv."""
     missing = tmp_path / "missing.ply"

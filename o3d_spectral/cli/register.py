@@ -77,6 +77,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "pip install 'o3d-spectral[gpu]'; the search is then dense)",
     )
     parser.add_argument(
+        "--rotations", choices=("auto", "adaptive", "dense", "escalating"), default="auto",
+        help="how the global search sweeps SO(3) where its first candidates are not "
+        "confirmed (GlobalSearchOption.rotations): 'auto' (default) escalates on the CPU "
+        "(the dense search too where the pose may be wrong) and is dense on a GPU; "
+        "'dense' on every call; 'adaptive' never dense",
+    )
+    parser.add_argument(
         "--drop-nan", action="store_true",
         help="drop points with NaN or infinite coordinates (with a warning) instead of "
         "refusing the file",
@@ -355,6 +362,7 @@ def _registered(
     cloud = o3d_spectral.CloudOption(camera_location=args.camera_location,
                                      target_viewpoint=_viewpoint(args.target_viewpoint),
                                      source_camera_location=args.source_camera_location)
+    search = o3d_spectral.GlobalSearchOption(rotations=args.rotations)
     log.info("registering %s onto %s at %g m voxels%s, bandwidth %d: %s", args.source.name,
              args.target.name, voxel_size, " first (voxel size by trial)" if trial else "",
              args.bandwidth,
@@ -366,7 +374,7 @@ def _registered(
     if trial:
         began = time.perf_counter()
         chosen = o3d_spectral.voxel_trial(source, target, option=option, criteria=criteria,
-                                          cloud=cloud, device=args.device)
+                                          search=search, cloud=cloud, device=args.device)
         result, voxel_size = chosen.result, chosen.voxel_size
         log.info("--voxel-size auto: %.4g m, confidence %.3f (tried %s; %.2f s in all)",
                  voxel_size, result.confidence,
@@ -374,5 +382,6 @@ def _registered(
                  time.perf_counter() - began)
         return result, voxel_size
     return o3d_spectral.registration_spectral_global(
-        source, target, voxel_size, option, criteria, cloud=cloud, device=args.device
+        source, target, voxel_size, option, criteria, search=search, cloud=cloud,
+        device=args.device
     ), voxel_size
