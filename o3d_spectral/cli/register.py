@@ -71,6 +71,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--save", type=Path, metavar="FILE",
                         help="write the source moved by the result (" + ", ".join(SAVE_FORMATS)
                         + "); its folder is checked before the registration runs")
+    _add_search_arguments(parser)
+    parser.add_argument(
+        "--drop-nan", action="store_true",
+        help="drop points with NaN or infinite coordinates (with a warning) instead of "
+        "refusing the file",
+    )
+    parser.set_defaults(func=run, status=True)
+
+
+def _add_search_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--device`` and ``--rotations``: where and how the global search runs."""
     parser.add_argument(
         "--device", type=_device, default=None, metavar="CPU:0|CUDA:N",
         help="where the global search's correlations run: CPU:0 (default) or CUDA:N (CuPy: "
@@ -83,12 +94,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(the dense search too where the pose may be wrong) and is dense on a GPU; "
         "'dense' on every call; 'adaptive' never dense",
     )
-    parser.add_argument(
-        "--drop-nan", action="store_true",
-        help="drop points with NaN or infinite coordinates (with a warning) instead of "
-        "refusing the file",
-    )
-    parser.set_defaults(func=run, status=True)
 
 
 def _voxel_size(text: str) -> float | str:
