@@ -203,7 +203,9 @@ def registration_spectral_global(
         Stopping rule of the final climb (the search's climbs stop at
         ``search.hypothesis_iterations``).
     search : GlobalSearchOption, optional
-        Hypotheses, climbs, focus and the Euler grid of the search.
+        Hypotheses, climbs, focus, the Euler grid of the search and how it sweeps SO(3)
+        (``rotations``: on the CPU by default the dense search only where the pose is in
+        doubt).
     cloud : CloudOption, optional
         Normal estimation and the target's sensor position.
     refinement : RefinementOption or None
