@@ -76,7 +76,10 @@ class GlobalSearchOption:
         calibrated confidence under one half) and the dense search applies, the dense
         search too, and the more confident of the two results returned: the dense
         search's successes at about the adaptive search's time, since calls whose pose
-        is not in doubt pay nothing more.
+        is not in doubt pay nothing more. The confidence of the more confident of two is
+        not calibrated for that choice: on held-out occluded views it returned three
+        wrong poses at 0.73-0.86 where the adaptive search's poses (two wrong, one
+        right) were doubted (``docs/design-notes.md``).
     dense_rotations : int, default 4608
         With ``rotations="dense"``: the even rotations sampled, >= 1 (4608: every
         rotation within about 13 degrees of one, 7 at the median; the peak the search
