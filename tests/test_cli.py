@@ -94,6 +94,16 @@ def test_register_passes_the_sweep_of_so3_to_the_global_call(
     assert "--rotations" in capsys.readouterr().err
 
 
+def test_register_offers_every_sweep_of_so3_the_option_takes():
+    from o3d_spectral.cli import build_parser
+    from o3d_spectral.search.options import ROTATIONS
+
+    for rotations in ROTATIONS:
+        args = build_parser().parse_args(["register", "a.ply", "b.ply", "--voxel-size",
+                                          "0.008", "--rotations", rotations])
+        assert o3d_spectral.GlobalSearchOption(rotations=args.rotations).rotations == rotations
+
+
 def test_register_reports_bad_input(tmp_path, capsys):
     """A failed run exits 1 with one line naming the file; the traceback only with -vv."""
     missing = tmp_path / "missing.ply"

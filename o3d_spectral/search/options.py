@@ -10,7 +10,11 @@ from dataclasses import dataclass
 from ..common.checks import check_bool, check_choice, check_int
 from ..options import SpectralRegistrationOption
 
-__all__ = ["GlobalSearchOption"]
+__all__ = ["GlobalSearchOption", "ROTATIONS"]
+
+#: The values of :attr:`GlobalSearchOption.rotations` (the command line's ``--rotations``
+#: lists them again, to keep its start-up free of the search's imports).
+ROTATIONS = ("auto", "adaptive", "dense", "escalating")
 
 
 @dataclass(frozen=True)
@@ -148,7 +152,7 @@ class GlobalSearchOption:
         check_int("shell_hypotheses", self.shell_hypotheses, low=0)
         check_int("coarse_placements", self.coarse_placements, low=0)
         check_int("sweep_rotations", self.sweep_rotations, low=0)
-        check_choice("rotations", self.rotations, ("auto", "adaptive", "dense", "escalating"))
+        check_choice("rotations", self.rotations, ROTATIONS)
         check_int("dense_rotations", self.dense_rotations, low=1)
         check_int("second_opinions", self.second_opinions, low=0)
         check_int("turns", self.turns, low=0)
