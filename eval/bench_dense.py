@@ -20,7 +20,10 @@ its own). Success as ``bench_speed.py`` scores it (symmetry-aware, 5 degrees and
 
 Reports per group and variant: n, success, median seconds (every call, right or wrong),
 and the dense sweep's median seconds (the dense calls' stage ``sweep``, the escalating
-calls' ``dense_sweep``); writes ``rows.csv``,
+calls' ``dense_sweep``); writes ``rows.csv`` (each spectral call's ``confidence``, ``fit``
+and ``fitness`` beside its time and errors; where the escalating call escalated, its
+second pass returns the dense call's pose, so the adaptive and dense rows hold both of
+its candidates),
 ``summary.csv`` and ``summary.md`` to ``--out``, and with ``--figure`` the success of each
 variant against its median time (a Pareto view in the manner of Deep Global
 Registration's), one panel per kind of problem as ``frontier.png`` and one per group as
@@ -72,7 +75,8 @@ def spectral(rotations: str, count: int | None = None):
         result = o3d_spectral.registration_spectral_global(task.source, task.target,
                                                            task.voxel, search=search)
         return np.asarray(result.transformation), {
-            "sweep_s": result.stage_times.get(sweep_stage, 0.0), "confidence": result.confidence}
+            "sweep_s": result.stage_times.get(sweep_stage, 0.0), "confidence": result.confidence,
+            "fit": result.fit, "fitness": result.fitness}
 
     return call
 
@@ -85,7 +89,8 @@ def lean_ransac(max_iteration: int, confidence: float):
                                         confidence=confidence)
         T = tutorial.global_then_refine(task.source, task.target, task.voxel, task.seed,
                                         match, lean=True)
-        return T, {"sweep_s": float("nan"), "confidence": float("nan")}
+        return T, {"sweep_s": float("nan"), "confidence": float("nan"), "fit": float("nan"),
+                   "fitness": float("nan")}
 
     return call
 

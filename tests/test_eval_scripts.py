@@ -200,6 +200,9 @@ def test_bench_dense(tmp_path):
     assert [r["variant"] for r in rows] == ["adaptive", "escalating", "dense", "dense_300",
                                             "lean", "lean_100_0.9"]
     assert all(float(r["seconds"]) > 0 and r["success"] in ("True", "False") for r in rows)
+    spectral, lean = rows[:4], rows[4:]  # the spectral calls' evidence; none for RANSAC
+    assert all(0 < float(r[k]) <= 1 for r in spectral for k in ("confidence", "fit", "fitness"))
+    assert all(r[k] == "nan" for r in lean for k in ("confidence", "fit", "fitness"))
     summary = read_csv(tmp_path / "summary.csv")
     assert [(s["group"], s["n"]) for s in summary] == [("turntable_45", "1")] * 6
     assert table_rows(printed, "turntable_45")
