@@ -82,7 +82,8 @@ class SpectralRegistrationResult(o3d.pipelines.registration.RegistrationResult):
         The motions of the source that leave its fit unchanged farther than a pose's
         tolerance (:mod:`o3d_spectral.evidence.free_motions`): a turn about an axis or a slide
         along one, how far each way (degrees or metres), and whether it is a symmetry of
-        the source (the pose is right up to it) or a motion the data do not fix. In the
+        the source (the pose is right up to it; of a single view's surface, where the
+        object shares it) or a motion the data do not fix. In the
         target's frame; empty for most poses. A symmetry is a note (:attr:`notes`), any
         other a warning; the confidence does not count them.
     pose_evidence : PoseEvidence or None

@@ -150,3 +150,21 @@ def test_a_free_motion_is_a_note_where_it_is_a_symmetry_and_a_warning_where_not(
     assert found == ["underdetermined: the clouds fit as well slid along (1.00, 0.00, 0.00) "
                      "by -0.04 to 0.05 m, which is no symmetry of the source: the data do "
                      "not fix the pose along it (result.free_motions)"]
+
+
+def test_a_free_turn_of_a_single_view_is_a_symmetry_of_what_it_shows_only():
+    """A view does not show the whole object: the note says the pose is right up to the
+    turn only where the object shares the view's symmetry (a mug's hidden handle)."""
+    from o3d_spectral.evidence.free_motions import FreeMotion
+
+    view = o3d_spectral.io.cloud.CloudReading(view=np.array([0.0, 0.0, 1.0]))
+    turn = FreeMotion("turn", np.array([0.0, 0.0, 1.0]), np.zeros(3), (-180.0, 180.0), True)
+    found, notes = diagnostics.registration_messages(
+        converged=True, max_iteration=100, readings={"source": view}, confidence=0.9,
+        free_motions=(turn,))
+    assert found == []
+    assert notes == ["free: the clouds fit as well turned about an axis along (0.00, 0.00, "
+                     "1.00) by -180 to 180 deg, a symmetry of the source as its view shows "
+                     "it: the pose is right up to it where the object has that symmetry too "
+                     "(a can), not where a part out of sight breaks it (a mug's handle) "
+                     "(result.free_motions)"]

@@ -84,8 +84,8 @@ def registration_messages(
         That pose is the returned one turned by a symmetry of the whole source (not a
         single view).
     free_motions : tuple of FreeMotion
-        The returned pose's free motions: a symmetry of the source is a note, any other
-        a warning.
+        The returned pose's free motions: a symmetry of the source is a note (of a single
+        view's surface, one that says the object may not share it), any other a warning.
     """
     found, notes = [], []
     if not converged:
@@ -119,10 +119,16 @@ def registration_messages(
     elif ambiguity is not None:
         found.append(f"ambiguous: a pose {ambiguity:.0f} deg away fits as well (a symmetric "
                      "object?): result.ambiguity, result.ambiguous_transformation")
+    whole = readings["source"].view is None  # a view hides what may break its symmetry
     for motion in free_motions:
-        if motion.symmetric:
+        if motion.symmetric and whole:
             notes.append(f"free: the clouds fit as well {motion.describe()}, a symmetry of "
                          "the source: the pose is right up to it (result.free_motions)")
+        elif motion.symmetric:
+            notes.append(f"free: the clouds fit as well {motion.describe()}, a symmetry of "
+                         "the source as its view shows it: the pose is right up to it where "
+                         "the object has that symmetry too (a can), not where a part out of "
+                         "sight breaks it (a mug's handle) (result.free_motions)")
         else:
             found.append(f"underdetermined: the clouds fit as well {motion.describe()}, which "
                          "is no symmetry of the source: the data do not fix the pose along "

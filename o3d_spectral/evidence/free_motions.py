@@ -72,7 +72,8 @@ class FreeMotion:
         for a turn, metres along ``axis`` for a slide; a whole turn is (-180, 180).
     symmetric : bool
         The whole source resists the motion no more than its overlap: a symmetry of the
-        source (the pose is right up to it) rather than a motion the data do not fix.
+        source (the pose is right up to it; where the source is a single view, only if
+        the object shares it) rather than a motion the data do not fix.
     """
 
     kind: str
