@@ -185,9 +185,9 @@ def registration_spectral_global(
        calibrated confidence under one half), the other climbs' poses climbed on,
        polished and measured, and the most confident returned
        (:func:`o3d_spectral.opinions.second_opinion`; ``search.second_opinions``);
-    9. **dense_sweep**: on the CPU by default (``search.rotations="escalating"``), not
-       in a scene, where the pose may still be wrong: SO(3) swept evenly and ranked up to
-       the voxel's own grid (:mod:`o3d_spectral.search.dense`), stages 3-8 run again from
+    9. **dense_sweep**: on the CPU by default (``search.rotations="escalating"``),
+       where the pose may still be wrong: SO(3) swept evenly and ranked up to the
+       voxel's own grid (:mod:`o3d_spectral.search.dense`), stages 3-8 run again from
        that ranking, and the more confident of the two results returned.
 
     Against a single view the search correlates the view with the model as the sensor

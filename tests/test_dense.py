@@ -5,6 +5,7 @@ import pytest
 
 import o3d_spectral
 from o3d_spectral.correlation import BatchedCorrelation, TurnedCloud
+from o3d_spectral.harness.metrics import instance_score
 from o3d_spectral.harness.real import (
     case_errors,
     is_success,
@@ -16,6 +17,8 @@ from o3d_spectral.search.candidates import SWEEP_PLACEMENTS, SWEEP_SENSOR_ANGLE
 from o3d_spectral.search.dense import compass, dense_candidates, dense_rotations
 from o3d_spectral.search.situation import Kind, situation
 from o3d_spectral.spectra import so3
+from o3d_spectral.synthetic.scenes import make_instance
+from o3d_spectral.synthetic.suite import instance_rng
 
 
 @pytest.fixture(scope="module")
@@ -95,6 +98,25 @@ def test_escalating_is_the_adaptive_search_where_its_pose_is_not_in_doubt():
     np.testing.assert_array_equal(escalating.transformation, adaptive.transformation)
     assert escalating.confidence == adaptive.confidence
     assert "dense_sweep" not in escalating.stage_times
+
+
+@pytest.mark.slow
+def test_escalating_searches_a_cluttered_scene_densely_where_its_pose_is_in_doubt():
+    """A banana among other objects (the seed-0 cluttered suite's instance 36): the
+    adaptive search doubts a wrong pose; the dense search, placing its rotations anywhere
+    in the scene, finds the right one, and the escalating search returns it."""
+    instance = make_instance("cluttered", "banana", rng=instance_rng(0, 36))
+    score = instance_score(instance)
+
+    def registered(rotations: str) -> o3d_spectral.SpectralRegistrationResult:
+        search = o3d_spectral.GlobalSearchOption(rotations=rotations, workers=2)
+        return o3d_spectral.registration_spectral_global(instance.source, instance.target,
+                                                         0.008, search=search)
+
+    adaptive, escalating = registered("adaptive"), registered("escalating")
+    assert adaptive.confidence < 0.5 and not score(np.asarray(adaptive.transformation))[2]
+    assert escalating.confidence >= 0.5 and score(np.asarray(escalating.transformation))[2]
+    assert "dense_sweep" in escalating.stage_times
 
 
 @pytest.mark.slow

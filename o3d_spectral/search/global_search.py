@@ -112,18 +112,17 @@ class GlobalSearch:
     @property
     def sweeps(self) -> bool:
         """Whether :meth:`rank` with ``sweep=True`` adds a sweep of SO(3): the dense
-        search outside a scene (:attr:`rotations` ``"dense"``); otherwise two scans, and
+        search (:attr:`rotations` ``"dense"``); otherwise two scans, and
         ``option.sweep_rotations`` over 0."""
         if self.rotations == "dense":
-            return not self.situation.scene
+            return True
         return self.situation.two_scans and self.option.sweep_rotations > 0
 
     @property
     def escalates(self) -> bool:
         """Whether a doubtful result of this search is searched again by
-        :meth:`densified`: :attr:`rotations` ``"escalating"``, and not in a scene (where
-        the dense search does not sweep)."""
-        return self.rotations == "escalating" and not self.situation.scene
+        :meth:`densified`: :attr:`rotations` ``"escalating"``."""
+        return self.rotations == "escalating"
 
     def densified(self) -> GlobalSearch:
         """This search as the dense one (:attr:`rotations` ``"dense"``), sharing what it

@@ -71,16 +71,16 @@ class GlobalSearchOption:
         ``"dense"`` where the correlations run on a GPU (the call's ``device``),
         ``"escalating"`` on the CPU (:meth:`sweep_on`). ``"adaptive"``:
         between two single views, ``sweep_rotations`` rotations ranked on a coarse grid;
-        in no other case. ``"dense"``: between two single views and for an object
-        against a view or model of it (not in a scene), ``dense_rotations`` even
-        rotations ranked coarse to fine up to the voxel's own grid and the best refined
-        there (:mod:`o3d_spectral.search.dense`): more calls right where the clouds
-        share little of their normals (scans far apart), at seconds a call on a few
-        cores. ``"escalating"``: ``"adaptive"`` first; where its pose may be wrong (its
-        calibrated confidence under one half) and the dense search applies, the dense
-        search too, and the more confident of the two results returned: the dense
-        search's successes at about the adaptive search's time, since calls whose pose
-        is not in doubt pay nothing more. The confidence of the more confident of two is
+        in no other case. ``"dense"``: ``dense_rotations`` even rotations ranked coarse
+        to fine up to the voxel's own grid and the best refined there
+        (:mod:`o3d_spectral.search.dense`), placed anywhere in the fixed cloud: more
+        calls right where the clouds share little of their normals (scans far apart)
+        and where a scene's other surfaces hide the object's in the EGI (clutter), at
+        seconds a call on a few cores. ``"escalating"``: ``"adaptive"`` first; where its
+        pose may be wrong (its calibrated confidence under one half), the dense search
+        too, and the more confident of the two results returned: the dense search's
+        successes at about the adaptive search's time, since calls whose pose is not in
+        doubt pay nothing more. The confidence of the more confident of two is
         not calibrated for that choice: on held-out occluded views it returned three
         wrong poses at 0.73-0.86 where the adaptive search's poses (two wrong, one
         right) were doubted (``docs/design-notes.md``).
