@@ -1011,8 +1011,7 @@ def dense() -> str:
         provenance("dense") + " The three spectral searches and the lean FPFH-RANSAC at "
         "their defaults otherwise, on every core of this 2-core machine, each call timed "
         "once; success symmetry-aware, 5 degrees and 1 cm; the dense sweep: the stage "
-        "`sweep` of the dense calls (0 where the first candidates were confirmed, or in a "
-        "scene).",
+        "`sweep` of the dense calls (0 where the first candidates were confirmed).",
     ])
 
 
