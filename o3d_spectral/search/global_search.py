@@ -114,9 +114,8 @@ class GlobalSearch:
         """Whether :meth:`rank` with ``sweep=True`` adds a sweep of SO(3): the dense
         search (:attr:`rotations` ``"dense"``); otherwise two scans, and
         ``option.sweep_rotations`` over 0."""
-        if self.rotations == "dense":
-            return True
-        return self.situation.two_scans and self.option.sweep_rotations > 0
+        return self.rotations == "dense" or (self.situation.two_scans
+                                             and self.option.sweep_rotations > 0)
 
     @property
     def escalates(self) -> bool:
