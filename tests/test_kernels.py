@@ -48,6 +48,61 @@ def test_compiling_ahead_covers_the_types_the_correlation_passes():
     assert done.stdout.strip() == "{}"
 
 
+#: Every kernel's floating-point output, as one digest, from one process.
+_KERNEL_DIGEST = """
+import hashlib
+import numpy as np
+from o3d_spectral.spectra import kernels, so3
+from o3d_spectral.spectra.correlation_loop import Splat, correlation_peaks
+rng = np.random.default_rng(5)
+digest = hashlib.sha256()
+directions = rng.normal(size=(700, 3))
+directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+digest.update(kernels.harmonic_sums(directions, rng.uniform(size=700), 12).tobytes())
+shape = (16, 16, 9)
+moving = (rng.normal(size=(2, *shape, 2))).astype(np.float32)
+fixed = (rng.normal(size=(*shape, 2))).astype(np.float32)
+window = rng.uniform(size=shape).astype(np.float32)
+out = np.empty_like(moving)
+kernels.whitened_into(moving, fixed, window, np.float32(1e-6), out)
+digest.update(out.tobytes())
+points = rng.uniform(-5.0, 5.0, (400, 3))
+normals = rng.normal(size=(400, 3))
+normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+rotations = np.stack([so3.exp(rng.normal(size=3)) for _ in range(3)])
+spectrum = np.fft.rfftn(rng.uniform(size=(32, 32, 32))).astype(np.complex64)
+splat = Splat(points, np.full(3, 8.0), normals, np.array([30.0, 8.0, 8.0]), True, False,
+              10, True, False)
+for found in correlation_peaks(splat, rotations, spectrum, np.ones((32, 32, 17), np.float32),
+                               1e-6, (32, 32, 32), rng.uniform(size=(20, 20, 20)),
+                               np.array([-3, 2, 1]), batch=2, moving_shape=(16, 16, 16),
+                               shape=(32, 32, 32)):
+    digest.update(np.ascontiguousarray(found).tobytes())
+print(digest.hexdigest())
+"""
+
+
+@pytest.mark.slow
+def test_the_kernels_give_the_same_bits_on_any_cpu(tmp_path):
+    """The compiled kernels (harmonic sums, whitening, the turned and culled splat, the
+    batched correlation with its neighbours and overlaps) give the same bits compiled
+    for this CPU as for numba's generic x86-64 one (no SIMD beyond SSE2, no FMA): the
+    compiler may vectorise but not reorder or fuse their floating-point operations, so
+    that a registration's pose does not depend on the machine's instruction set."""
+    root = str(Path(__file__).resolve().parents[1])
+
+    def digest(**variables):
+        env = {**os.environ, "PYTHONPATH": root, **variables}
+        done = subprocess.run([sys.executable, "-c", _KERNEL_DIGEST], capture_output=True,
+                              text=True, env=env, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    host = digest(NUMBA_CACHE_DIR=str(tmp_path / "host"))
+    assert len(host) == 64
+    assert digest(NUMBA_CPU_NAME="generic", NUMBA_CACHE_DIR=str(tmp_path / "generic")) == host
+
+
 @pytest.mark.parametrize("culled", [False, True])
 @pytest.mark.parametrize("cropped", [False, True])
 def test_the_compiled_correlation_is_its_steps_to_the_bit(culled, cropped):

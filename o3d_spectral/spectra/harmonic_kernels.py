@@ -33,14 +33,15 @@ def _legendre_factors(B: int) -> tuple[NDArray, NDArray, NDArray]:
     return c, a, b
 
 
-@numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
+@numba.njit(cache=True, nogil=True)
 def harmonic_sums(directions: NDArray, weights: NDArray, B: int) -> NDArray:
     """``F_lm = sum_i w_i S_lm(n_i)`` for ``l < B``
     (:func:`o3d_spectral.spectra.harmonics.project`).
 
     The orthonormal Legendre recurrence runs over blocks of :data:`HARMONIC_BLOCK`
-    directions at once, each block's terms summed before they are added to ``F``
-    (reassociated sums: equal to a one-direction-at-a-time loop to rounding).
+    directions at once, each block's terms summed in order before they are added to
+    ``F`` (equal to a one-direction-at-a-time loop to rounding, and the same bits on
+    every CPU: no fast-math, see :mod:`o3d_spectral.spectra.kernels`).
 
     Parameters
     ----------
