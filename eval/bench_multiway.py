@@ -50,7 +50,7 @@ import o3d_spectral
 from o3d_spectral.harness import real
 from o3d_spectral.harness.errors import symmetric_rotation_error, symmetric_translation_error
 from o3d_spectral.harness.methods import get_method
-from o3d_spectral.harness.writers import write_rows
+from o3d_spectral.harness.writers import write_bench
 from o3d_spectral.multiway.registration import pair_list, poses_from_pairs
 from o3d_spectral.synthetic.camera import look_at, scan_meshes
 from o3d_spectral.synthetic.instance import SceneOptions
@@ -301,10 +301,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{len(scans)} in {seconds:.1f} s", file=sys.stderr)
     summaries = summary(rows, times)
     text = table(summaries, command, commit)
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_rows(args.out / "rows.csv", rows)
-    write_rows(args.out / "summary.csv", summaries)
-    (args.out / "table.md").write_text(text)
+    write_bench(args.out, rows, summaries, text, "table.md")
     print(text, end="")
     return 0
 

@@ -44,6 +44,7 @@ SCRIPTS = (
     "bench_report.py",
     "bench_scaling.py",
     "bench_settings.py",
+    "bench_shapes.py",
     "bench_speed.py",
     "bench_stages.py",
     "bench_width.py",
@@ -151,6 +152,32 @@ def test_handle_visibility(tmp_path):
     assert all(min(shares[angle, elevation]) <= 0.005 for angle in (30, 45, 60)
                for elevation in (20, 45))
     assert min(shares[120, 20]) > 0.01
+
+
+def test_bench_shapes(tmp_path):
+    """One view of a flat can and of a marker against the global call and the lean
+    FPFH-RANSAC: a row per call with symmetry-aware errors, the summary per shape and
+    overall, the same instances in a second run (only the times differ)."""
+    args = ("--out", tmp_path / "a", "--views", 1, "--shapes", "tuna_can", "marker")
+    printed = run("bench_shapes.py", *args, cwd=tmp_path)
+    rows = read_csv(tmp_path / "a" / "rows.csv")
+    assert [(r["shape"], r["method"]) for r in rows] == [
+        (shape, method) for shape in ("tuna_can", "marker")
+        for method in ("spectral_global", "fpfh_ransac_lean")]
+    assert all(0.0 <= float(r["rotation_error_deg"]) <= 180.0 for r in rows)
+    assert all(r["success"] in ("True", "False") and int(r["target_points"]) >= 300
+               for r in rows)
+    assert all(0.0 <= float(r["confidence"]) <= 1.0 for r in rows
+               if r["method"] == "spectral_global")
+    summary = read_csv(tmp_path / "a" / "summary.csv")
+    assert [r["shape"] for r in summary] == ["tuna_can"] * 2 + ["marker"] * 2 + ["all"] * 2
+    assert [int(r["n"]) for r in summary] == [1, 1, 1, 1, 2, 2]
+    assert len(table_rows(printed, "all")) == 1
+    run("bench_shapes.py", *args[:1], tmp_path / "b", *args[2:], cwd=tmp_path)
+    again = read_csv(tmp_path / "b" / "rows.csv")
+    for key in ("target_points", "rotation_error_deg", "translation_error_m", "success"):
+        assert [r[key] for r in again] == [r[key] for r in rows]
+    run("bench_shapes.py", "--out", tmp_path / "c", "--views", 0, cwd=tmp_path, code=2)
 
 
 @pytest.mark.slow

@@ -11,8 +11,8 @@ from pathlib import Path
 
 from o3d_spectral.harness.tables import Table
 
-__all__ = ["markdown_text", "tex_prose", "tex_text", "to_latex", "to_markdown", "write_figure",
-           "write_rows", "write_table"]
+__all__ = ["markdown_text", "tex_prose", "tex_text", "to_latex", "to_markdown", "write_bench",
+           "write_figure", "write_rows", "write_table"]
 
 
 def _cell(value, kind: str, *, latex: bool) -> str:
@@ -138,6 +138,17 @@ def write_rows(path: Path, rows: list[dict]) -> None:
         writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
+
+
+def write_bench(out: Path, rows: list[dict], summary: list[dict], table: str,
+                table_name: str = "summary.md") -> None:
+    """A bench's outputs in the folder ``out`` (made): its ``rows`` as ``rows.csv``, its
+    ``summary`` as ``summary.csv`` (:func:`write_rows`) and its Markdown ``table`` as
+    ``table_name``."""
+    out.mkdir(parents=True, exist_ok=True)
+    write_rows(out / "rows.csv", rows)
+    write_rows(out / "summary.csv", summary)
+    (out / table_name).write_text(table)
 
 
 def write_figure(fig, path: Path) -> Path:
