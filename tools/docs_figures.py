@@ -981,10 +981,10 @@ def shapes() -> str:
     """Each stand-in shape's success with the global call and the lean FPFH-RANSAC, and
     the spectral call's wrong poses returned without a warning: from
     ``eval/bench_shapes.py``'s rows and summary."""
-    rows = read_csv("shapes_rows")
-    summary = {(r["shape"], r["method"]): r for r in read_csv("shapes")}
+    rows, stored = read_csv("shapes_rows"), read_csv("shapes")
+    summary = {(r["shape"], r["method"]): r for r in stored}
     lines = []
-    for name in dict.fromkeys(r["shape"] for r in read_csv("shapes")):
+    for name in dict.fromkeys(r["shape"] for r in stored):
         mine = [r for r in rows if r["method"] == "spectral_global"
                 and name in (r["shape"], "all")]
         silent = [r for r in mine if r["success"] == "False" and float(r["confidence"]) >= 0.5
